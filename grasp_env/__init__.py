@@ -1,0 +1,42 @@
+"""grasp_env: frictionless enveloping grasping in the plane (Trinkle, Abel & Paul, IJRR 1988).
+
+The public API is DESIGN.md section 4: :func:`load_scene`, :class:`Simulator`, the analysis
+functions (:func:`is_form_closure`, :func:`is_force_closure`, :func:`grip_objective`,
+:func:`tippability_regions`, :func:`object_width`) and the Gymnasium environment
+``FrictionlessGrasp-v0``.
+"""
+
+from grasp_env.contacts import Contact
+from grasp_env.errors import SceneError, SolverError
+from grasp_env.mechanics import (
+    escape_direction,
+    grip_objective,
+    is_force_closure,
+    is_form_closure,
+)
+from grasp_env.scene import Scene, bundled_scenes, load_scene
+from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.state import Event, State
+from grasp_env.tippability import tippability_regions
+from grasp_env.width import object_width
+
+__all__ = [
+    "Contact",
+    "Event",
+    "Scene",
+    "SceneError",
+    "SimulationError",
+    "Simulator",
+    "SolverError",
+    "State",
+    "bundled_scenes",
+    "escape_direction",
+    "grip_objective",
+    "is_force_closure",
+    "is_form_closure",
+    "load_scene",
+    "object_width",
+    "tippability_regions",
+]
+
+__version__ = "0.1.0"

@@ -1,0 +1,275 @@
+"""Contact geometry between the object and the support, palm and fingers.
+
+A contact is a vertex of one body on an edge of another (DESIGN.md section 2). It is
+identified by a key ``(body, kind, object_feature, hand_feature)``:
+
+* kind ``EDGE`` (``"edge"``): object vertex ``object_feature`` on edge ``hand_feature`` of the
+  hand body (for the support, the line y = 0, ``hand_feature = 0``); the contact point is fixed
+  in the object frame and the normal is the hand edge's outward normal.
+* kind ``TIP`` (``"tip"``): hand vertex ``hand_feature`` (usually a fingertip) on object edge
+  ``object_feature`` (from vertex k to k+1); the point is fixed in the hand body's frame and the
+  normal is the object edge's inward normal.
+
+Normals always point into the object; gaps are positive when the bodies are apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from grasp_env import geometry as geo
+from grasp_env import kinematics as kin
+from grasp_env.scene import Scene
+
+EDGE, TIP = 0, 1
+KIND_NAMES = ("edge", "tip")
+
+#: Key of a contact: (body, kind, object_feature, hand_feature).
+ContactKey = tuple[int, int, int, int]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A contact of a returned state (public, DESIGN.md section 4).
+
+    Attributes:
+        body: ``"support"``, ``"palm"``, ``"finger1"`` or ``"finger2"``.
+        kind: ``"edge"`` (object vertex on a hand edge) or ``"tip"`` (hand vertex on an
+            object edge).
+        point: contact point in the world, shape (2,).
+        normal: unit normal into the object, world frame, shape (2,).
+        force: contact force magnitude ``c >= 0``; the force on the object is ``c * normal``.
+        object_feature: object vertex (edge kind) or object edge index (tip kind).
+        hand_feature: hand edge (edge kind; 0 for the support) or hand vertex index (tip kind).
+        gap: signed gap at the returned state (``|gap| <= contact_tol``).
+    """
+
+    body: str
+    kind: str
+    point: np.ndarray
+    normal: np.ndarray
+    force: float
+    object_feature: int
+    hand_feature: int
+    gap: float = 0.0
+
+    @property
+    def key(self) -> ContactKey:
+        return (
+            geo.BODY_NAMES.index(self.body),
+            KIND_NAMES.index(self.kind),
+            self.object_feature,
+            self.hand_feature,
+        )
+
+    def as_dict(self) -> dict:
+        return {
+            "body": self.body,
+            "kind": self.kind,
+            "point": self.point.copy(),
+            "normal": self.normal.copy(),
+            "force": self.force,
+        }
+
+
+class Placement:
+    """World geometry of every body for one object pose ``q`` and hand configuration ``h``.
+
+    Computed once per configuration and shared by contact detection, gaps and Jacobians, so
+    that the LP, Newton and event checks of one increment do no repeated work.
+
+    Attributes:
+        obj_W: object vertices in the world, shape (n, 2).
+        obj_n_W: outward unit normals of the object edges, shape (n, 2).
+        hand_W: world polygons of palm, finger 1, finger 2 (each (4, 2)).
+        hand_n_W: their outward edge normals (each (4, 2)).
+    """
+
+    __slots__ = ("com_W", "h", "hand_W", "hand_n_W", "obj_W", "obj_n_W", "q", "scene")
+
+    def __init__(self, scene: Scene, q: np.ndarray, h: np.ndarray) -> None:
+        self.scene, self.q, self.h = scene, q, h
+        R = geo.rot(q[2])
+        self.com_W = q[:2]
+        self.obj_W = scene.object.vertices_B @ R.T + q[:2]
+        self.obj_n_W = object_normals_B(scene) @ R.T
+        poses = kin.body_poses_W(scene, h)
+        self.hand_W, self.hand_n_W = [], []
+        for pose, poly, n_B in zip(
+            poses, kin.hand_polygons_local(scene), _hand_normals_B(scene), strict=True
+        ):
+            Rb = geo.rot(pose[2])
+            self.hand_W.append(poly @ Rb.T + pose[:2])
+            self.hand_n_W.append(n_B @ Rb.T)
+
+    def evaluate(self, key: ContactKey) -> tuple[np.ndarray, np.ndarray, float, float, float]:
+        """Point (2,), normal into the object (2,), gap, edge parameter t and edge length.
+
+        ``t`` is the position of the vertex's projection along the edge (0 at the edge's first
+        vertex, 1 at its second); for the support it is 0.5 and the length infinite.
+        """
+        body, kind, k, j = key
+        if kind == EDGE:
+            p = self.obj_W[k]
+            if body == geo.SUPPORT:
+                return p, _UP, float(p[1]), 0.5, np.inf
+            poly, n = self.hand_W[body - 1], self.hand_n_W[body - 1][j]
+            a, b = poly[j], poly[(j + 1) % len(poly)]
+            d = b - a
+            L2 = float(d @ d)
+            return p, n, float(n @ (p - a)), float((p - a) @ d) / L2, L2**0.5
+        p = self.hand_W[body - 1][j]
+        m = self.obj_n_W[k]
+        a, b = self.obj_W[k], self.obj_W[(k + 1) % len(self.obj_W)]
+        d = b - a
+        L2 = float(d @ d)
+        return p, -m, float(m @ (p - a)), float((p - a) @ d) / L2, L2**0.5
+
+
+_UP = np.array([0.0, 1.0])
+
+
+def object_normals_B(scene: Scene) -> np.ndarray:
+    """Outward edge normals of the object in its own frame, shape (n, 2) (cached on the scene)."""
+    cache = scene.__dict__.get("_normals_B")
+    if cache is None:
+        cache = geo.edge_normals(scene.object.vertices_B)
+        object.__setattr__(scene, "_normals_B", cache)
+    return cache
+
+
+def _hand_normals_B(scene: Scene) -> list[np.ndarray]:
+    cache = scene.__dict__.get("_hand_normals_B")
+    if cache is None:
+        cache = [geo.edge_normals(p) for p in kin.hand_polygons_local(scene)]
+        object.__setattr__(scene, "_hand_normals_B", cache)
+    return cache
+
+
+def broad_phase(pl: Placement, margin: float) -> list[int]:
+    """Hand bodies (1..3) whose bounding box comes within ``margin`` of the object's, plus the
+    support (0) when the object's lowest point is within ``margin`` of y = 0."""
+    lo, hi = pl.obj_W.min(axis=0) - margin, pl.obj_W.max(axis=0) + margin
+    near = [geo.SUPPORT] if lo[1] <= 0.0 else []
+    for b, poly in enumerate(pl.hand_W, start=1):
+        plo, phi = poly.min(axis=0), poly.max(axis=0)
+        if np.all(plo <= hi) and np.all(phi >= lo):
+            near.append(b)
+    return near
+
+
+def candidate_gaps(pl: Placement, bodies: list[int]) -> list[tuple[ContactKey, float, float]]:
+    """Every vertex-edge pair of the object and ``bodies`` whose vertex projects onto the edge.
+
+    Returns ``(key, gap, t)`` for pairs with ``t`` in [0, 1] (support: all object vertices).
+    Vectorised over vertices and edges of each body pair.
+    """
+    out: list[tuple[ContactKey, float, float]] = []
+    obj, obj_n = pl.obj_W, pl.obj_n_W
+    n_obj = len(obj)
+    obj_d = np.roll(obj, -1, axis=0) - obj
+    for body in bodies:
+        if body == geo.SUPPORT:
+            out.extend(((body, EDGE, k, 0), float(obj[k, 1]), 0.5) for k in range(n_obj))
+            continue
+        poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
+        d = np.roll(poly, -1, axis=0) - poly
+        # object vertex k on hand edge j
+        rel = obj[:, None, :] - poly[None, :, :]  # (k, j, 2)
+        gap = (rel * n[None]).sum(-1)
+        t = (rel * d[None]).sum(-1) / (d * d).sum(-1)[None]
+        for k, j in zip(*np.nonzero((t >= 0.0) & (t <= 1.0)), strict=True):
+            out.append(((body, EDGE, int(k), int(j)), float(gap[k, j]), float(t[k, j])))
+        # hand vertex j on object edge k
+        rel = poly[:, None, :] - obj[None, :, :]  # (j, k, 2)
+        gap = (rel * obj_n[None]).sum(-1)
+        t = (rel * obj_d[None]).sum(-1) / (obj_d * obj_d).sum(-1)[None]
+        for j, k in zip(*np.nonzero((t >= 0.0) & (t <= 1.0)), strict=True):
+            out.append(((body, TIP, int(k), int(j)), float(gap[j, k]), float(t[j, k])))
+    return out
+
+
+def _locally_valid(pl: Placement, key: ContactKey, tol: float) -> bool:
+    """True when the vertex's two adjacent edges leave on its own side of the edge's line.
+
+    For convex bodies that makes the edge's line separate them near the contact, so its
+    half-plane is a valid frictionless constraint. At a vertex-vertex touch this rejects the
+    candidate edges that would cut through the other body.
+    """
+    body, kind, k, j = key
+    if kind == EDGE:
+        verts, v = pl.obj_W, k
+        n = _UP if body == geo.SUPPORT else pl.hand_n_W[body - 1][j]
+    else:
+        verts, v = pl.hand_W[body - 1], j
+        n = pl.obj_n_W[k]  # the hand vertex's neighbours must stay outside the object
+    m = len(verts)
+    p = verts[v]
+    return bool(n @ (verts[v - 1] - p) >= -tol and n @ (verts[(v + 1) % m] - p) >= -tol)
+
+
+def detect(pl: Placement, tol: float) -> list[ContactKey]:
+    """Contacts at a placement: vertex-edge pairs with ``|gap| <= tol`` whose edge separates.
+
+    An edge lying along an edge yields its two end contacts. Coincident duplicates (the same
+    point and normal seen as both an edge and a tip contact) keep the edge-kind one.
+    """
+    margin = 10.0 * tol
+    keys: list[ContactKey] = []
+    seen: list[tuple[np.ndarray, np.ndarray]] = []
+    cands = sorted(
+        candidate_gaps(pl, broad_phase(pl, margin)), key=lambda c: c[0][1]
+    )  # edges first
+    for key, gap, _t in cands:
+        if abs(gap) > tol or not _locally_valid(pl, key, tol):
+            continue
+        p, n, *_ = pl.evaluate(key)
+        if any(np.abs(p - p2).max() <= 2 * tol and n @ n2 > 1 - 1e-9 for p2, n2 in seen):
+            continue
+        seen.append((p, n))
+        keys.append(key)
+    return keys
+
+
+def vertex_of(key: ContactKey) -> tuple[int, int, int]:
+    """The (body, kind, vertex) a contact key pins: the object vertex of an edge contact or the
+    hand vertex of a tip contact."""
+    return (key[0], key[1], key[2] if key[1] == EDGE else key[3])
+
+
+def min_gap(
+    pl: Placement, exclude: set[tuple[int, int, int]] = frozenset(), bodies: list[int] | None = None
+) -> tuple[float, ContactKey | None]:
+    """Smallest vertex-in-body gap over every vertex not pinned by a contact in ``exclude``.
+
+    For a vertex and a convex body the gap is the largest of the vertex's edge gaps, which is
+    exact while the vertex is inside, so no penetration by a vertex goes unnoticed. ``exclude``
+    holds :func:`vertex_of` triples of the active contacts. Returns ``(gap, key)`` of the worst
+    pair (``key`` names the edge of largest gap, i.e. the edge the vertex entered through).
+    """
+    worst, worst_key = np.inf, None
+    obj, obj_n = pl.obj_W, pl.obj_n_W
+    for body in bodies if bodies is not None else (0, 1, 2, 3):
+        if body == geo.SUPPORT:
+            for k in range(len(obj)):
+                if obj[k, 1] < worst and (0, EDGE, k) not in exclude:
+                    worst, worst_key = float(obj[k, 1]), (0, EDGE, k, 0)
+            continue
+        poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
+        g = ((obj[:, None, :] - poly[None]) * n[None]).sum(-1)  # object vertex k vs hand edge j
+        inside = g.max(axis=1)
+        for k in np.argsort(inside):
+            if inside[k] >= worst:
+                break
+            if (body, EDGE, int(k)) not in exclude:
+                worst, worst_key = float(inside[k]), (body, EDGE, int(k), int(np.argmax(g[k])))
+        g = ((poly[:, None, :] - obj[None]) * obj_n[None]).sum(-1)  # hand vertex j vs object edge k
+        inside = g.max(axis=1)
+        for j in np.argsort(inside):
+            if inside[j] >= worst:
+                break
+            if (body, TIP, int(j)) not in exclude:
+                worst, worst_key = float(inside[j]), (body, TIP, int(np.argmax(g[j])), int(j))
+    return worst, worst_key

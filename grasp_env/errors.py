@@ -1,0 +1,15 @@
+"""Project exceptions: bad input raises ValueError subclasses; solver failures carry a status."""
+
+from __future__ import annotations
+
+
+class SceneError(ValueError):
+    """A scene description is invalid; the message names the field and the value."""
+
+
+class SolverError(RuntimeError):
+    """An LP or Newton solve failed; ``status`` says how (e.g. ``"infeasible"``)."""
+
+    def __init__(self, message: str, status: str) -> None:
+        super().__init__(f"{message} (status: {status})")
+        self.status = status

@@ -1,0 +1,143 @@
+"""Pure planar geometry: rotations, polygons, hand kinematics and world polygons of every body.
+
+Frames follow DESIGN.md section 2: world W (y up, support at y = 0), palm frame P with the
+finger joints at ``(-w/2, 0)`` and ``(+w/2, 0)``, object frame O at the object's centroid.
+A hand configuration is the vector ``h = (x_p, y_p, theta_p, q1, q2)``; an object pose is
+``q = (x, y, theta)``. Every polygon is an ``(n, 2)`` array of counter-clockwise vertices.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Body names in contact order; index 0 is the support half-plane y <= 0.
+BODY_NAMES = ("support", "palm", "finger1", "finger2")
+SUPPORT, PALM, FINGER1, FINGER2 = range(4)
+
+
+def rot(theta: float) -> np.ndarray:
+    """2x2 rotation matrix by ``theta`` (counter-clockwise)."""
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray | float:
+    """z component of ``a x b`` for 2-vectors (broadcasts over leading axes)."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def perp(a: np.ndarray) -> np.ndarray:
+    """``k x a``: ``a`` rotated by +pi/2."""
+    return np.stack([-a[..., 1], a[..., 0]], axis=-1)
+
+
+def transform(pose: np.ndarray, points_B: np.ndarray) -> np.ndarray:
+    """Points ``(n, 2)`` in a body frame to the world, for a body pose ``(x, y, theta)``."""
+    return points_B @ rot(pose[2]).T + pose[:2]
+
+
+def polygon_area(vertices: np.ndarray) -> float:
+    """Signed area (positive for counter-clockwise vertices)."""
+    x, y = vertices[:, 0], vertices[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
+    """Centroid of a simple polygon of uniform density, shape (2,)."""
+    x, y = vertices[:, 0], vertices[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    a = x * yn - xn * y
+    area = 0.5 * a.sum()
+    return np.array([((x + xn) * a).sum(), ((y + yn) * a).sum()]) / (6.0 * area)
+
+
+def polygon_inertia(vertices_B: np.ndarray, mass: float) -> float:
+    """Moment of inertia about the frame origin (the centroid) of a uniform polygon of ``mass``."""
+    x, y = vertices_B[:, 0], vertices_B[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    a = x * yn - xn * y
+    area = 0.5 * a.sum()
+    j = (a * (x * x + x * xn + xn * xn + y * y + y * yn + yn * yn)).sum() / 12.0
+    return float(mass * j / area)
+
+
+def edge_normals(vertices: np.ndarray) -> np.ndarray:
+    """Outward unit normals of the edges ``v_k -> v_{k+1}`` of a CCW polygon, shape (n, 2)."""
+    d = np.roll(vertices, -1, axis=0) - vertices
+    n = np.stack([d[:, 1], -d[:, 0]], axis=1)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def finger_axis_P(q: float) -> np.ndarray:
+    """Unit axis ``u_i = (cos q_i, sin q_i)`` of a finger in the palm frame."""
+    return np.array([math.cos(q), math.sin(q)])
+
+
+def finger_polygon_local(length: float, thickness: float, finger: int) -> np.ndarray:
+    """CCW finger rectangle in its own link frame (x along the finger axis, origin at the joint).
+
+    The palmar edge runs along the x axis; the body lies on the side away from the inward
+    normal, which is +y for finger 1 and -y for finger 2 (DESIGN.md section 2). The palmar
+    edge is always edge 3 (vertices 3 -> 0) so both fingers index it the same way.
+    """
+    L, t = length, thickness
+    if finger == 1:  # inward normal +y; body at y in [-t, 0]
+        return np.array([[0.0, 0.0], [0.0, -t], [L, -t], [L, 0.0]])
+    # finger 2: inward normal -y; body at y in [0, t]
+    return np.array([[L, 0.0], [L, t], [0.0, t], [0.0, 0.0]])
+
+
+#: Index of the palmar (inner) edge of a finger polygon and of the fingertip vertex on it.
+FINGER_PALMAR_EDGE = 3
+
+
+def fingertip_index(finger: int) -> int:
+    """Vertex index of the fingertip (the palmar edge's end at the tip)."""
+    return 3 if finger == 1 else 0
+
+
+def palm_polygon_local(width: float, thickness: float) -> np.ndarray:
+    """CCW palm rectangle ``[-w/2, w/2] x [0, t]`` in P; edge 0 (J1 -> J2) is the palmar edge."""
+    h = width / 2.0
+    return np.array([[-h, 0.0], [h, 0.0], [h, thickness], [-h, thickness]])
+
+
+def finger_link_pose(h: np.ndarray, palm_width: float, finger: int) -> np.ndarray:
+    """World pose ``(x, y, phi)`` of finger ``finger``'s link frame (origin at its joint)."""
+    xp, yp, thp = h[0], h[1], h[2]
+    jx = -palm_width / 2.0 if finger == 1 else palm_width / 2.0
+    c, s = math.cos(thp), math.sin(thp)
+    return np.array([xp + c * jx, yp + s * jx, thp + h[2 + finger]])
+
+
+def is_convex_ccw(vertices: np.ndarray, tol: float = 1e-12) -> bool:
+    """True when the polygon is strictly convex with counter-clockwise vertices."""
+    d = np.roll(vertices, -1, axis=0) - vertices
+    turn = cross2(d, np.roll(d, -1, axis=0))
+    scale = np.linalg.norm(d, axis=1) * np.linalg.norm(np.roll(d, -1, axis=0), axis=1)
+    return bool(np.all(turn > tol * scale)) and polygon_area(vertices) > 0
+
+
+def turns_once(vertices: np.ndarray) -> bool:
+    """True when the exterior angles sum to 2 pi: a convex CCW polygon that winds only once
+    (rules out star polygons whose every turn is to the left)."""
+    d = np.roll(vertices, -1, axis=0) - vertices
+    ang = np.arctan2(cross2(d, np.roll(d, -1, axis=0)), (d * np.roll(d, -1, axis=0)).sum(axis=1))
+    return bool(abs(ang.sum() - 2 * math.pi) < 1e-6)
+
+
+def penetration_depth(a: np.ndarray, b: np.ndarray) -> float:
+    """Depth by which convex polygons ``a`` and ``b`` overlap (separating-axis test); <= 0 if apart.
+
+    The result is the smallest overlap over the edge normals of both polygons, i.e. minus
+    their separation distance along the best axis.
+    """
+    depth = math.inf
+    for p, other in ((a, b), (b, a)):
+        n = edge_normals(p)
+        # Each edge's support line: how far the other polygon reaches behind it.
+        reach = (p * n).sum(axis=1) - (other @ n.T).min(axis=0)
+        depth = min(depth, float(reach.min()))
+    return depth

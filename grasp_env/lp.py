@@ -1,0 +1,58 @@
+"""Small linear programs: the reference path through HiGHS (``scipy.optimize.linprog``).
+
+Every LP of the project goes through :func:`solve`, which returns a :class:`LPResult` with the
+status in words (``"optimal"``, ``"infeasible"``, ``"unbounded"``) and the duals of the
+inequality and equality rows, so a faster specialised solver can replace it behind one name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+
+from grasp_env.errors import SolverError
+
+_STATUS = {0: "optimal", 2: "infeasible", 3: "unbounded"}
+
+
+@dataclass(frozen=True)
+class LPResult:
+    """Outcome of ``min c^T x s.t. A_ub x <= b_ub, A_eq x = b_eq, bounds``.
+
+    ``duals_ub`` (<= 0) and ``duals_eq`` are the sensitivities of the optimum to ``b_ub`` and
+    ``b_eq`` (HiGHS marginals); they are ``None`` unless the status is ``"optimal"``.
+    """
+
+    status: str
+    x: np.ndarray | None
+    value: float
+    duals_ub: np.ndarray | None = None
+    duals_eq: np.ndarray | None = None
+
+
+def solve(
+    c: np.ndarray,
+    A_ub: np.ndarray | None = None,
+    b_ub: np.ndarray | None = None,
+    A_eq: np.ndarray | None = None,
+    b_eq: np.ndarray | None = None,
+    bounds: object = (None, None),
+) -> LPResult:
+    """Solve a small LP with HiGHS; raise :class:`SolverError` on any status but the three above."""
+    if A_ub is not None and len(A_ub) == 0:
+        A_ub = b_ub = None
+    if A_eq is not None and len(A_eq) == 0:
+        A_eq = b_eq = None
+    res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
+    status = _STATUS.get(res.status)
+    if status is None:
+        raise SolverError(f"HiGHS failed: {res.message}", status=f"highs_{res.status}")
+    if status == "unbounded":
+        return LPResult(status, None, -np.inf)
+    if status == "infeasible":
+        return LPResult(status, None, np.inf)
+    duals_ub = res.ineqlin.marginals if A_ub is not None else np.zeros(0)
+    duals_eq = res.eqlin.marginals if A_eq is not None else np.zeros(0)
+    return LPResult(status, res.x, float(res.fun), duals_ub, duals_eq)

@@ -1,0 +1,239 @@
+"""The paper's grasp mechanics (section 2): velocity constraints, equilibrium, LPs and closure.
+
+Notation (paper -> code): contact normals ``o_Ci`` -> ``n_W`` (into the object); the object's
+constraint matrix ``V_ob`` (eq. 9) has rows ``[n_i^T, r_i x n_i]`` with ``r_i`` the contact
+point relative to the object's centre of mass; ``W_O = V_ob^T`` (eq. 14, moments about the
+centre of mass, so the gravity wrench ``w`` of eq. 15 has no moment); ``W_F`` and ``s`` are
+the finger rows of eq. 13 (eqs. 16-17) with moments about each finger's joint.
+
+Object velocities are twists ``(vx, vy, omega)`` of the centre of mass; hand velocities are
+``dh = (dx_p, dy_p, dtheta_p, dq1, dq2)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from grasp_env import geometry as geo
+from grasp_env import kinematics as kin
+from grasp_env import lp
+from grasp_env.scene import Scene
+from grasp_env.state import State
+
+
+def V_ob(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.ndarray:
+    """Object velocity-constraint matrix (eq. 9), shape (n, 3).
+
+    Row i maps an object twist to the normal velocity of the object's material point at
+    contact i: ``n_i . (v + omega k x r_i) = [n_i, r_i x n_i] . (v, omega)``.
+    """
+    r = points_W - com_W
+    return np.column_stack([normals_W, geo.cross2(r, normals_W)])
+
+
+def xi(
+    scene: Scene,
+    h: np.ndarray,
+    dh: np.ndarray,
+    bodies: np.ndarray,
+    points_W: np.ndarray,
+    normals_W: np.ndarray,
+) -> np.ndarray:
+    """Right-hand side of eq. 20: ``xi_i = n_i . v_hand(p_i)``, shape (n,).
+
+    ``v_hand(p_i)`` is the velocity of the hand body's material point at contact i for hand
+    velocity ``dh`` (eqs. 18, 20: ``xi = -[V_theta V_p] [dtheta; dq_p]``); zero on the support.
+    """
+    out = np.zeros(len(bodies))
+    if len(bodies) == 0:
+        return out
+    poses = kin.body_poses_W(scene, h)
+    tw = kin.body_twists_W(scene, h, dh)
+    for i, b in enumerate(bodies):
+        if b == geo.SUPPORT:
+            continue
+        r = points_W[i] - poses[b - 1, :2]
+        t = tw[b - 1]
+        out[i] = normals_W[i, 0] * (t[0] - t[2] * r[1]) + normals_W[i, 1] * (t[1] + t[2] * r[0])
+    return out
+
+
+def W_O(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.ndarray:
+    """Object wrench matrix (eq. 14), shape (3, n): column i is the wrench of a unit force
+    along ``n_i`` at ``p_i``, moments about the centre of mass (``= V_ob^T``)."""
+    return V_ob(points_W, normals_W, com_W).T
+
+
+def gravity_wrench(scene: Scene) -> np.ndarray:
+    """``w`` of eq. 15 about the centre of mass: the wrench the contacts must supply, (3,)."""
+    return np.array([0.0, scene.object_weight, 0.0])
+
+
+def W_F(
+    scene: Scene, h: np.ndarray, bodies: np.ndarray, points_W: np.ndarray, normals_W: np.ndarray
+) -> np.ndarray:
+    """Finger wrench matrix (eq. 16), shape (2, n).
+
+    Entry (k, i) is the moment about finger k's joint of a unit contact force on the finger
+    (``-n_i`` at ``p_i``) for contacts on finger k, else 0. Finger k is in equilibrium when
+    ``(W_F c)_k + tau_k = s_k`` (eq. 13, bottom rows).
+    """
+    out = np.zeros((2, len(bodies)))
+    poses = kin.body_poses_W(scene, h)
+    for i, b in enumerate(bodies):
+        if b in (geo.FINGER1, geo.FINGER2):
+            r = points_W[i] - poses[b - 1, :2]
+            out[b - 2, i] = -float(geo.cross2(r, normals_W[i]))
+    return out
+
+
+def finger_gravity_moments(scene: Scene, h: np.ndarray) -> np.ndarray:
+    """``s`` of eq. 17, shape (2,): minus the moment of each finger's weight about its joint.
+
+    The weight acts at the finger rectangle's centroid (DESIGN.md section 2).
+    """
+    poses = kin.body_poses_W(scene, h)
+    out = np.empty(2)
+    for k in range(2):
+        f = scene.fingers[k]
+        c_local = f.polygon_local(k + 1).mean(axis=0)
+        c_W = geo.rot(poses[k + 1, 2]) @ c_local
+        out[k] = f.mass * scene.gravity * c_W[0]  # -(r x (0, -m g)) = m g r_x
+    return out
+
+
+@dataclass(frozen=True)
+class MotionLP:
+    """Solution of the velocity LP (eqs. 19-21) and its dual, the force LP (eqs. 22-24).
+
+    Attributes:
+        status: ``"optimal"``, ``"infeasible"`` (velocity LP: the hand motion cannot happen, a
+            jam) or ``"unbounded"`` (velocity LP: the object can lower its potential energy
+            without limit, the force LP is infeasible: a fall).
+        velocity: an optimal object twist (3,) or None.
+        forces: the contact forces ``lambda`` (n,) of the force LP or None.
+        value: the common optimum ``m g^T dq_ob = xi^T lambda`` (duality).
+    """
+
+    status: str
+    velocity: np.ndarray | None
+    forces: np.ndarray | None
+    value: float
+
+
+def velocity_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
+    """Velocity formulation (eqs. 19-21): ``min m g v_y  s.t.  V v >= xi``, ``v`` free."""
+    return lp.solve(np.array([0.0, weight, 0.0]), A_ub=-V, b_ub=-xi_, bounds=(None, None))
+
+
+def force_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
+    """Force formulation (eqs. 22-24): ``max xi^T lam  s.t.  V^T lam = m gamma, lam >= 0``.
+
+    Returned as the minimisation of ``-xi^T lam``: its ``value`` is minus the optimum.
+    """
+    b = np.array([0.0, weight, 0.0])
+    return lp.solve(-xi_, A_eq=V.T, b_eq=b, bounds=(0, None))
+
+
+def motion_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> MotionLP:
+    """Object motion for a hand velocity: both formulations, checked against each other.
+
+    The velocity LP gives the object twist and the force LP the contact forces; their optima
+    agree by LP duality (eq. 19 = eq. 22), which is how the simulator cross-checks a solve.
+    """
+    vel = velocity_lp(V, xi_, weight)
+    if vel.status != "optimal":
+        return MotionLP(vel.status, None, None, vel.value)
+    frc = force_lp(V, xi_, weight)
+    return MotionLP("optimal", vel.x, frc.x, vel.value)
+
+
+def _state_arrays(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    p, n, b = state.contact_arrays()
+    return p, n, b, V_ob(p, n, state.object_pose[:2])
+
+
+def gyration_radius(scene: Scene) -> float:
+    """Radius of gyration ``sqrt(I / m)`` of the object: the length that makes a rotation
+    rate comparable with a translation rate in the mass metric."""
+    return math.sqrt(scene.object.inertia / scene.object.mass)
+
+
+def escape_direction(state: State) -> np.ndarray | None:
+    """An object twist allowed by the contacts with the hand fixed, or None in form closure.
+
+    Solves ``max 1^T V u  s.t.  V u >= 0, -1 <= u <= 1`` in scaled twists ``u = (vx, vy,
+    rho omega)`` (``rho`` the radius of gyration). If ``V`` has rank < 3 a null-space twist
+    escapes; otherwise ``V u >= 0`` has a nonzero solution iff the optimum is positive (section
+    2.5: form closure iff ``V_ob dq >= 0`` admits only ``dq = 0``). Returned with unit norm in the
+    scaled metric, as ``(vx, vy, omega)``.
+    """
+    _, _, _, V = _state_arrays(state)
+    rho = gyration_radius(state.scene)
+    Vs = V * np.array([1.0, 1.0, 1.0 / rho])
+    if len(Vs) == 0 or np.linalg.matrix_rank(Vs, tol=1e-10) < 3:
+        u = np.linalg.svd(np.vstack([Vs, np.zeros((1, 3))]))[2][-1]
+        return u * np.array([1.0, 1.0, 1.0 / rho])
+    res = lp.solve(-Vs.sum(axis=0), A_ub=-Vs, b_ub=np.zeros(len(Vs)), bounds=(-1, 1))
+    if res.status != "optimal" or -res.value <= 1e-9 * len(Vs):
+        return None
+    u = res.x / np.linalg.norm(res.x)
+    return u * np.array([1.0, 1.0, 1.0 / rho])
+
+
+def is_form_closure(state: State) -> bool:
+    """Form closure (section 2.5): with the hand fixed, ``V_ob dq >= 0`` only for ``dq = 0``."""
+    return escape_direction(state) is None
+
+
+def is_force_closure(state: State) -> bool:
+    """Force closure (section 2.5): gravity is balanced by the contacts, ``W_O c = w, c >= 0``."""
+    _, _, _, V = _state_arrays(state)
+    res = lp.solve(np.zeros(len(V)), A_eq=V.T, b_eq=gravity_wrench(state.scene), bounds=(0, None))
+    return res.status == "optimal"
+
+
+def grip_objective(state: State) -> float:
+    """Minimum total contact force ``y*`` of eqs. 31-36, ``inf`` if no grip holds the object.
+
+    Solves, over contact forces ``c`` (all contacts, support and palm included, eq. 31) and
+    joint torques ``tau``::
+
+        min 1^T c   s.t.   W_O c = w                 (object equilibrium, eq. 13 top)
+                           W_F c + tau = s           (finger moment balance, eq. 13 bottom)
+                           tau_min <= tau <= tau_max (eqs. 35-36),  c >= 0 (eq. 34)
+
+    as a direct LP in ``c`` with ``tau = s - W_F c`` substituted; the paper's null-space form
+    (eqs. 29-33) is the same problem (tests compare the two).
+    """
+    p, n, b, V = _state_arrays(state)
+    scene = state.scene
+    if len(n) == 0:
+        return math.inf
+    WF = W_F(scene, state.hand, b, p, n)
+    s = finger_gravity_moments(scene, state.hand)
+    tmin = np.array([f.torque_limits[0] for f in scene.fingers])
+    tmax = np.array([f.torque_limits[1] for f in scene.fingers])
+    # tau_min <= s - W_F c <= tau_max  <=>  -W_F c <= tau_max - s  and  W_F c <= s - tau_min
+    rows, rhs = [], []
+    for k in range(2):
+        if np.isfinite(tmax[k]):
+            rows.append(-WF[k])
+            rhs.append(tmax[k] - s[k])
+        if np.isfinite(tmin[k]):
+            rows.append(WF[k])
+            rhs.append(s[k] - tmin[k])
+    A_ub = np.array(rows) if rows else None
+    b_ub = np.array(rhs) if rows else None
+    res = lp.solve(
+        np.ones(len(n)),
+        A_ub=A_ub,
+        b_ub=b_ub,
+        A_eq=V.T,
+        b_eq=gravity_wrench(scene),
+        bounds=(0, None),
+    )
+    return res.value if res.status == "optimal" else math.inf

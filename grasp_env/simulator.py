@@ -1,0 +1,544 @@
+"""Quasi-static frictionless simulator: the paper's active-set method (section 3.1).
+
+For a straight-line hand move ``h(s) = h0 + s (h1 - h0)``, ``s`` in [0, 1], the object moves so
+as to minimise its potential energy without interpenetration (eqs. 19-24). Per increment:
+
+1. **Active set.** The velocity LP (eqs. 19-21) and the force LP (eqs. 22-24) at the current
+   configuration give the object velocity and the contact forces. The contacts with positive
+   force, plus any touching contact the hand pushes on (tight at the least-motion optimal
+   velocity), form the active set ``E``: by complementary slackness they stay closed.
+2. **Newton.** The active contacts' gap equations ``phi_E(q, h(s)) = 0`` (edge and tip contacts
+   of the appendix, eqs. A.8, A.10, A.12, A.15, written in vector form in
+   :mod:`grasp_env.contacts`) are solved for the object pose ``q`` with Newton's method and the
+   exact Jacobian ``V_ob`` (the gap gradient; least-motion steps when ``E`` leaves freedom).
+3. **Consistency.** The step is accepted if no other vertex penetrates a body, no active
+   contact slides off the end of its edge, and the active contacts still hold the object with
+   non-negative forces. Otherwise the first event is located by bisection on ``s`` to
+   ``contact_tol``; the motion stops there, the contacts are updated and the move continues.
+
+Infeasible velocity LP: the hand cannot move on (a jam); the hand stops there. Unbounded
+velocity LP: the object falls along the steepest admissible descent of its potential energy
+(gravity projected onto the admissible cone in the mass metric) until contacts hold it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import nnls
+
+from grasp_env import contacts as ct
+from grasp_env import geometry as geo
+from grasp_env import kinematics as kin
+from grasp_env import mechanics as mech
+from grasp_env import qp
+from grasp_env.errors import SolverError
+from grasp_env.scene import Scene, load_scene
+from grasp_env.state import Event, State
+
+
+@dataclass
+class _Step:
+    """Working data of one configuration along the move (not part of the public state)."""
+
+    s: float
+    q: np.ndarray
+    pl: ct.Placement
+    keys: list = field(default_factory=list)
+
+
+class SimulationError(RuntimeError):
+    """The simulator could not continue (a solve failed even on the fallbacks)."""
+
+
+class Simulator:
+    """Quasi-static frictionless grasp simulator for one scene.
+
+    Args:
+        scene: a :class:`~grasp_env.scene.Scene`, bundled name, path or dict.
+        contact_tol: gap below which bodies touch, relative to the palm width (default 1e-9).
+            No returned state penetrates deeper; events are located to within it.
+        max_step: largest increment of the path parameter ``s`` between consistency checks
+            along a move, as a fraction of the move (default 0.05). Smaller steps cost time;
+            they matter for moves whose active set leaves the object free directions.
+        fall_step: largest object displacement of one step of a fall, relative to the object's
+            size (default 0.02).
+        max_iterations: safety cap on increments per move (default 10000).
+    """
+
+    def __init__(
+        self,
+        scene: Scene | str | dict,
+        contact_tol: float = 1e-9,
+        max_step: float = 0.05,
+        fall_step: float = 0.02,
+        max_iterations: int = 10000,
+    ) -> None:
+        self.scene = load_scene(scene)
+        if not (isinstance(contact_tol, float | int) and 0 < contact_tol < 1e-2):
+            raise ValueError(f"contact_tol must be in (0, 1e-2), got {contact_tol!r}")
+        if not (isinstance(max_step, float | int) and 0 < max_step <= 1):
+            raise ValueError(f"max_step must be in (0, 1], got {max_step!r}")
+        if not (isinstance(fall_step, float | int) and 0 < fall_step <= 1):
+            raise ValueError(f"fall_step must be in (0, 1], got {fall_step!r}")
+        L = self.scene.palm.width
+        self.tol = float(contact_tol) * L
+        self.max_step = float(max_step)
+        self.max_iterations = int(max_iterations)
+        verts = self.scene.object.vertices_B
+        self.size = float(np.linalg.norm(verts, axis=1).max())
+        self.fall_step = float(fall_step) * self.size
+        self.rho = mech.gyration_radius(self.scene)
+        self.weight = self.scene.object_weight
+        self.ftol = 1e-9 * self.weight
+        self.newton_tol = 1e-3 * self.tol
+        self._scale = np.array([1.0, 1.0, 1.0 / self.rho])  # twist -> scaled twist rows
+
+    # ------------------------------------------------------------------ public API
+    def reset(self) -> State:
+        """The scene's initial state; an object not held at its placement first falls to rest."""
+        scene = self.scene
+        return self.settle(scene.object.start_pose.copy(), scene.initial_hand)
+
+    def settle(self, object_pose: np.ndarray, hand: np.ndarray) -> State:
+        """State for a given object pose and hand configuration, after any fall to rest."""
+        q = np.asarray(object_pose, dtype=float).copy()
+        h = np.asarray(hand, dtype=float).copy()
+        events: list[Event] = []
+        q = self._fall_if_needed(q, h, 0.0, events)
+        return self._make_state(q, h, events)
+
+    def move_hand(
+        self,
+        state: State,
+        palm: np.ndarray | tuple | None = None,
+        fingers: np.ndarray | tuple | None = None,
+    ) -> State:
+        """Move the hand in a straight line in ``(x_p, y_p, theta_p, q1, q2)`` to the target.
+
+        Args:
+            state: the current state (its scene must be this simulator's).
+            palm: target palm pose ``(x, y, theta)``; None keeps the current one.
+            fingers: target finger angles ``(q1, q2)``; clipped to the joint limits (reported
+                as a ``"joint_limit"`` event). None keeps the current ones.
+
+        Returns:
+            The new state. It never raises for a jam, a fall or a blocked hand: ``jammed`` /
+            ``hand_blocked`` say the hand stopped short, and ``events`` say what happened.
+        """
+        h0 = state.hand.copy()
+        h1 = h0.copy()
+        events: list[Event] = []
+        if palm is not None:
+            h1[:3] = _finite_vector(palm, 3, "palm")
+        if fingers is not None:
+            target = _finite_vector(fingers, 2, "fingers")
+            lim = self.scene.joint_limits
+            clipped = np.clip(target, lim[:, 0], lim[:, 1])
+            if np.any(clipped != target):
+                events.append(Event("joint_limit", 1.0))
+            h1[3:] = clipped
+        s_end, blocked = self._support_limit(h0, h1)
+        if blocked:
+            events.append(Event("hand_blocked", s_end))
+        q, s_reached, jammed = self._advance(state.object_pose.copy(), h0, h1, s_end, events)
+        h = h0 + s_reached * (h1 - h0)
+        return self._make_state(q, h, events, jammed=jammed, blocked=blocked)
+
+    # ------------------------------------------------------------------ hand path
+    def _support_limit(self, h0: np.ndarray, h1: np.ndarray) -> tuple[float, bool]:
+        """Largest ``s`` in [0, 1] before a hand vertex enters the support, and whether the
+        move is cut short. Hand vertex heights are smooth in ``s``: a dense scan brackets the
+        first crossing, and bisection locates it to ``contact_tol``."""
+
+        def lowest(s: float) -> float:
+            return min(p[:, 1].min() for p in kin.hand_polygons_W(self.scene, h0 + s * (h1 - h0)))
+
+        if lowest(1.0) >= -self.tol and np.allclose(h0[2:], h1[2:]):
+            return 1.0, False  # pure translation: heights are linear in s
+        grid = np.linspace(0.0, 1.0, 65)
+        for a, b in itertools.pairwise(grid):
+            if lowest(b) < -self.tol:
+                lo, hi = a, b
+                while hi - lo > 1e-15 and lowest(hi) < -self.tol:
+                    mid = 0.5 * (lo + hi)
+                    if lowest(mid) < 0.0:
+                        hi = mid
+                    else:
+                        lo = mid
+                return lo, True
+        return 1.0, False
+
+    # ------------------------------------------------------------------ core loop
+    def _advance(
+        self, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, s_end: float, events: list[Event]
+    ) -> tuple[np.ndarray, float, bool]:
+        dh = h1 - h0
+        s = 0.0
+        banned: set = set()
+        stalls = 0
+        if not np.any(dh) or s_end <= 0.0:
+            return self._fall_if_needed(q, h0, 0.0, events), 0.0, False
+        for _ in range(self.max_iterations):
+            h = h0 + s * dh
+            pl = ct.Placement(self.scene, q, h)
+            keys = [k for k in ct.detect(pl, self.tol) if k not in banned]
+            plan = self._plan(pl, keys, h, dh)
+            if plan == "jam":
+                events.append(Event("jam", s, tuple(keys)))
+                return q, s, True
+            if plan == "fall":
+                q = self._fall(q, h, s, events)
+                continue
+            E, v = plan
+            if s >= s_end - 1e-15:
+                return q, s_end, False
+            ds = min(self.max_step, s_end - s)
+            ok, q_new, trigger = self._try_step(q, s, ds, E, v, h0, dh)
+            if ok:
+                q, s = q_new, s + ds
+                banned = set()
+                continue
+            s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
+            stalls = stalls + 1 if s_star - s < 1e-13 else 0
+            if stalls > 4:
+                raise SimulationError(f"no progress at s = {s}: {event} with active set {E}")
+            if s_star - s < 1e-13:
+                # No progress: the offending contact cannot stay active here; drop it.
+                if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and event.contacts:
+                    if event.contacts[0] in banned:
+                        raise SimulationError(f"stuck at s={s} on {event}")
+                    banned.add(event.contacts[0])
+                    continue
+            events.append(Event(event.kind, s_star, event.contacts))
+            q, s = q_star, s_star
+            banned = set()
+        raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
+
+    def _plan(self, pl: ct.Placement, keys: list, h: np.ndarray, dh: np.ndarray):
+        """Active set and least-motion velocity for hand velocity ``dh`` at a placement.
+
+        Vertex-vertex touches give several candidate contacts at one point whose admissible
+        half-planes form a union; each choice is tried and the one with the lowest potential
+        energy rate (the object's choice, eq. 19) is kept.
+        """
+        best = None
+        for choice in _choices(pl, keys, self.tol):
+            res = self._solve_lp(pl, choice, h, dh)
+            if res == "fall":
+                return "fall"
+            if res == "jam":
+                continue
+            if best is None or res[0] < best[0] - 1e-12 * self.weight:
+                best = res
+        if best is None:
+            return "jam"
+        return best[1], best[2]
+
+    def _solve_lp(self, pl: ct.Placement, keys: list, h: np.ndarray, dh: np.ndarray):
+        p, n, bodies = _arrays(pl, keys)
+        V = mech.V_ob(p, n, pl.com_W)
+        xi = mech.xi(self.scene, h, dh, bodies, p, n)
+        res = mech.motion_lp(V, xi, self.weight)
+        if res.status == "infeasible":
+            return "jam"
+        if res.status == "unbounded":
+            return "fall"
+        lam = res.forces
+        pos = lam > self.ftol
+        Vs = V * self._scale
+        try:
+            w = qp.least_norm(Vs[pos], xi[pos], Vs[~pos], xi[~pos], tol=1e-9)
+        except SolverError:
+            w = res.velocity / self._scale
+        v = w * self._scale
+        slack = V @ v - xi
+        tight = pos | (slack <= 1e-9 * max(1.0, float(np.abs(xi).max(initial=0.0))))
+        E = [k for k, t in zip(keys, tight, strict=True) if t]
+        return res.value, E, v
+
+    # ------------------------------------------------------------------ Newton
+    def _newton(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
+        """Solve ``phi_E(q, h) = 0`` from ``q0`` (least-motion steps); None if it fails."""
+        q = q0.copy()
+        if not E:
+            return q
+        for _ in range(30):
+            pl = ct.Placement(self.scene, q, h)
+            F = np.empty(len(E))
+            P = np.empty((len(E), 2))
+            N = np.empty((len(E), 2))
+            for i, key in enumerate(E):
+                P[i], N[i], F[i], _, _ = pl.evaluate(key)
+            if np.abs(F).max() <= self.newton_tol:
+                return q
+            J = mech.V_ob(P, N, q[:2]) * self._scale
+            du, *_ = np.linalg.lstsq(J, -F, rcond=1e-12)
+            q = q + du * self._scale
+            if not np.all(np.isfinite(q)):
+                return None
+        return None
+
+    # ------------------------------------------------------------------ consistency
+    def _check(self, q: np.ndarray, h: np.ndarray, E: list) -> dict:
+        """Signed violations of the active set ``E`` at ``(q, h)``, in length units.
+
+        Returns ``{(kind, key): value}``: ``value > tol`` is a violation, ``|value| <= tol``
+        an event sitting exactly here. Kinds: ``"new_contact"`` (minus the smallest gap of a
+        vertex not pinned by ``E``), ``"edge_to_tip"``/``"tip_to_edge"`` (how far an active
+        contact's point lies beyond its edge's end), ``"lost_contact"`` (minus the smallest
+        active force, scaled by size / weight) and ``"equilibrium"`` (the residual of the
+        object's equilibrium with ``E``'s forces, which only flags violations).
+        """
+        pl = ct.Placement(self.scene, q, h)
+        exclude = {ct.vertex_of(k) for k in E}
+        gap, key = ct.min_gap(pl, exclude, ct.broad_phase(pl, 0.05 * self.size + self.tol))
+        out = {}
+        if key is not None:
+            out[("new_contact", key)] = -gap
+        P = np.empty((len(E), 2))
+        N = np.empty((len(E), 2))
+        for i, k in enumerate(E):
+            P[i], N[i], _, t, L = pl.evaluate(k)
+            if np.isfinite(L):
+                kind = "edge_to_tip" if k[1] == ct.EDGE else "tip_to_edge"
+                out[(kind, k)] = max(-t, t - 1.0) * L
+        if E:
+            W = mech.V_ob(P, N, q[:2]).T
+            scale = self.size / self.weight
+            if len(E) <= 3 and np.linalg.matrix_rank(W, tol=1e-10) == len(E):
+                lam, *_ = np.linalg.lstsq(W, mech.gravity_wrench(self.scene), rcond=None)
+                res = float(np.linalg.norm(W @ lam - mech.gravity_wrench(self.scene)))
+                i = int(np.argmin(lam))
+                out[("lost_contact", E[i])] = -lam[i] * scale
+            else:
+                lam, res = nnls(W, mech.gravity_wrench(self.scene))
+            out[("equilibrium", None)] = res * scale - self.tol
+        return out
+
+    def _worst(self, checks: dict) -> tuple[float, tuple]:
+        if not checks:
+            return -np.inf, ("none", None)
+        ident = max(checks, key=checks.get)
+        return checks[ident], ident
+
+    def _try_step(self, q, s, ds, E, v, h0, dh):
+        h = h0 + (s + ds) * dh
+        q_new = self._newton(q + v * ds, h, E)
+        if q_new is None:
+            return False, None, ("jam", None)
+        worst, ident = self._worst(self._check(q_new, h, E))
+        return worst <= self.tol, q_new, ident
+
+    def _locate(self, q, s_lo, s_hi, E, v, h0, dh, trigger):
+        """Find the first point in ``(s_lo, s_hi]`` where the active set ``E`` stops being
+        consistent, to within ``contact_tol`` (bisection on ``s``).
+
+        Returns ``(s, q, Event)`` at the event: the triggering quantity sits within tolerance
+        of its limit there, and nothing is violated beyond tolerance.
+        """
+        q_lo = q
+        for _ in range(200):
+            mid = 0.5 * (s_lo + s_hi)
+            if mid <= s_lo or mid >= s_hi:
+                break
+            h = h0 + mid * dh
+            q_mid = self._newton(q_lo + v * (mid - s_lo), h, E)
+            if q_mid is None:
+                s_hi, trigger = mid, ("jam", None)
+                continue
+            checks = self._check(q_mid, h, E)
+            worst, ident = self._worst(checks)
+            if worst > self.tol:
+                s_hi, trigger = mid, ident
+            elif (
+                trigger[0] not in ("equilibrium", "jam")
+                and checks.get(trigger, -np.inf) >= -self.tol
+            ):
+                return mid, q_mid, _event(trigger, mid)
+            else:
+                s_lo, q_lo = mid, q_mid
+        return s_lo, q_lo, _event(trigger, s_lo)
+
+    # ------------------------------------------------------------------ falls
+    def _fall_if_needed(
+        self, q: np.ndarray, h: np.ndarray, s: float, events: list[Event]
+    ) -> np.ndarray:
+        pl = ct.Placement(self.scene, q, h)
+        keys = ct.detect(pl, self.tol)
+        if self._held(pl, keys):
+            return q
+        return self._fall(q, h, s, events)
+
+    def _held(self, pl: ct.Placement, keys: list) -> bool:
+        if not keys:
+            return False
+        p, n, _ = _arrays(pl, keys)
+        W = mech.V_ob(p, n, pl.com_W).T
+        _, res = nnls(W, mech.gravity_wrench(self.scene))
+        return res <= self.ftol
+
+    def _fall(self, q: np.ndarray, h: np.ndarray, s: float, events: list[Event]) -> np.ndarray:
+        """Quasi-static fall: follow the steepest admissible descent of the potential energy
+        (gravity projected on the admissible cone, mass metric) until contacts hold the object."""
+        events.append(Event("fall_start", s))
+        g_scaled = np.array([0.0, -1.0, 0.0])  # gravity direction, scaled twist coordinates
+        for _ in range(self.max_iterations):
+            pl = ct.Placement(self.scene, q, h)
+            keys = ct.detect(pl, self.tol)
+            if self._held(pl, keys):
+                events.append(Event("fall_end", s, tuple(keys)))
+                return q
+            p, n, _ = _arrays(pl, keys)
+            Cs = mech.V_ob(p, n, pl.com_W) * self._scale
+            # a = argmin |a - g|^2 s.t. C a >= 0  <=>  w = a - g: min |w|^2, C w >= -C g
+            try:
+                w = qp.least_norm(np.zeros((0, 3)), np.zeros(0), Cs, -Cs @ g_scaled)
+            except SolverError as exc:
+                raise SimulationError("fall direction infeasible") from exc
+            a = w + g_scaled
+            if np.linalg.norm(a) < 1e-12:
+                events.append(Event("fall_end", s, tuple(keys)))
+                return q
+            tight = (Cs @ a) <= 1e-10
+            E = [k for k, t in zip(keys, tight, strict=True) if t]
+            d = a * self._scale / np.linalg.norm(a) * self.fall_step
+            q = self._fall_step(q, h, E, d)
+        raise SimulationError("fall did not come to rest")
+
+    def _fall_step(self, q: np.ndarray, h: np.ndarray, E: list, d: np.ndarray) -> np.ndarray:
+        """One fall step of at most ``d``, shortened to the first new contact or edge end."""
+
+        def at(frac: float) -> np.ndarray | None:
+            return self._newton(q + frac * d, h, E)
+
+        q1 = at(1.0)
+        if q1 is not None:
+            if self._geometry_violation(q1, h, E) <= self.tol:
+                return q1
+        lo, hi, q_lo = 0.0, 1.0, q
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            q_mid = at(mid)
+            if q_mid is None:
+                hi = mid
+                continue
+            worst = self._geometry_violation(q_mid, h, E)
+            if worst > self.tol:
+                hi = mid
+            elif worst >= -self.tol:
+                return q_mid
+            else:
+                lo, q_lo = mid, q_mid
+            if hi - lo < 1e-16:
+                break
+        return q_lo
+
+    def _geometry_violation(self, q, h, E) -> float:
+        pl = ct.Placement(self.scene, q, h)
+        gap, _ = ct.min_gap(pl, {ct.vertex_of(k) for k in E})
+        worst = -gap
+        for k in E:
+            _, _, _, t, L = pl.evaluate(k)
+            if np.isfinite(L):
+                worst = max(worst, max(-t, t - 1.0) * L)
+        return worst
+
+    # ------------------------------------------------------------------ output
+    def _make_state(self, q, h, events, jammed=False, blocked=False) -> State:
+        pl = ct.Placement(self.scene, q, h)
+        keys = ct.detect(pl, self.tol)
+        forces = self._rest_forces(pl, keys)
+        contacts = []
+        for key, f in zip(keys, forces, strict=True):
+            p, n, gap, _, _ = pl.evaluate(key)
+            contacts.append(
+                ct.Contact(
+                    body=geo.BODY_NAMES[key[0]],
+                    kind=ct.KIND_NAMES[key[1]],
+                    point=p.copy(),
+                    normal=n.copy(),
+                    force=float(f),
+                    object_feature=key[2],
+                    hand_feature=key[3],
+                    gap=float(gap),
+                )
+            )
+        return State(
+            self.scene, q.copy(), h.copy(), tuple(contacts), jammed, blocked, tuple(events)
+        )
+
+    def _rest_forces(self, pl: ct.Placement, keys: list) -> np.ndarray:
+        """Contact forces holding the object once the hand stops: the least total force in
+        equilibrium (a position-controlled hand adds no preload, section 3.2)."""
+        if not keys:
+            return np.zeros(0)
+        from grasp_env import lp
+
+        p, n, _ = _arrays(pl, keys)
+        V = mech.V_ob(p, n, pl.com_W)
+        res = lp.solve(
+            np.ones(len(keys)), A_eq=V.T, b_eq=mech.gravity_wrench(self.scene), bounds=(0, None)
+        )
+        if res.status != "optimal":
+            return np.zeros(len(keys))
+        return np.maximum(res.x, 0.0)
+
+
+def _event(trigger: tuple, s: float) -> Event:
+    kind, key = trigger
+    if kind == "equilibrium":
+        kind = "lost_contact"
+    return Event(kind, s, (key,) if key is not None else ())
+
+
+def _arrays(pl: ct.Placement, keys: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = len(keys)
+    P, N = np.empty((n, 2)), np.empty((n, 2))
+    for i, k in enumerate(keys):
+        P[i], N[i], *_ = pl.evaluate(k)
+    return P, N, np.array([k[0] for k in keys], dtype=int)
+
+
+def _choices(pl: ct.Placement, keys: list, tol: float):
+    """Contact sets to try: one candidate per vertex-vertex touch (same body, same point)."""
+    groups: list[list] = []
+    for k in keys:
+        p = pl.evaluate(k)[0]
+        for g in groups:
+            k0 = g[0]
+            if (
+                k0[0] == k[0]
+                and np.abs(pl.evaluate(k0)[0] - p).max() <= 4 * tol
+                and k0[0] != geo.SUPPORT
+            ):
+                g.append(k)
+                break
+        else:
+            groups.append([k])
+    multi = [g for g in groups if len(g) > 1]
+    single = [g[0] for g in groups if len(g) == 1]
+    if not multi:
+        yield keys
+        return
+    for combo in itertools.product(*multi):
+        yield single + list(combo)
+
+
+def _finite_vector(value, size: int, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {size} numbers, got {value!r}") from None
+    if arr.shape != (size,):
+        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return arr
+
+
+__all__ = ["SimulationError", "Simulator"]
+_ = math

@@ -1,0 +1,824 @@
+"""Tests of :mod:`grasp_env.scene`: the bundled scenes, the paper's section-4 set-up, mass
+properties against independent computations, and refusal of malformed scenes.
+
+Every geometric quantity is recomputed here without :mod:`grasp_env.geometry`: areas and
+centroids by a triangle fan from vertex 0, the object width by projecting on many
+directions, inertias by numerical integration (row slicing and a 2-D midpoint grid) and by
+closed forms for rectangles and triangles.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from grasp_env.errors import SceneError
+from grasp_env.scene import Scene, bundled_scenes, load_scene, scene_from_dict
+
+SCENES_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenes"
+SCENE_FILES = sorted(p.stem for p in SCENES_DIR.glob("*.yaml"))
+REQUIRED_SCENES = (
+    "fig13",
+    "square",
+    "tall_rectangle",
+    "triangle",
+    "pentagon",
+    "hexagon",
+    "flat_trapezoid",
+)
+HALF_PI = math.pi / 2
+#: Height of the longer (hanging) finger's tip, or of the object's top if that is higher,
+#: below the palm in every bundled scene (fig13: "just high enough so that the longer
+#: finger could not touch the support").
+PALM_MARGIN = 0.01
+
+
+def raw_scene(name: str) -> dict[str, Any]:
+    """The bundled YAML file as plain data."""
+    return yaml.safe_load((SCENES_DIR / f"{name}.yaml").read_text())
+
+
+# ---------------------------------------------------------------------------------------
+# Independent geometry (no grasp_env.geometry)
+# ---------------------------------------------------------------------------------------
+
+
+def fan_area_centroid(v: np.ndarray) -> tuple[float, np.ndarray]:
+    """Signed area and centroid by triangulating from vertex 0."""
+    area = 0.0
+    moment = np.zeros(2)
+    for i in range(1, len(v) - 1):
+        a, b = v[i] - v[0], v[i + 1] - v[0]
+        t = 0.5 * (a[0] * b[1] - a[1] * b[0])
+        area += t
+        moment += t * (v[0] + v[i] + v[i + 1]) / 3.0
+    return area, moment / area
+
+
+def width_by_projection(v: np.ndarray, n_dirs: int = 20_000) -> float:
+    """Min over directions of the extent of the projection: the min distance between
+    parallel supporting lines (sampled; the error is at most extent * pi / n_dirs)."""
+    phi = np.linspace(0.0, math.pi, n_dirs, endpoint=False)
+    proj = v @ np.stack([np.cos(phi), np.sin(phi)])
+    return float((proj.max(axis=0) - proj.min(axis=0)).min())
+
+
+def sliced_mass_properties(v: np.ndarray, n_rows: int = 4000) -> tuple[float, np.ndarray, float]:
+    """Area, centroid and polar second moment about the centroid (per unit density) of a
+    convex polygon, by the midpoint rule in y with each row's x-integral done exactly."""
+    y0, y1 = v[:, 1].min(), v[:, 1].max()
+    h = (y1 - y0) / n_rows
+    y = y0 + h * (np.arange(n_rows) + 0.5)
+    a, b = v, np.roll(v, -1, axis=0)
+    xs = np.full((n_rows, len(v)), np.nan)
+    for k in range(len(v)):
+        if a[k, 1] == b[k, 1]:
+            continue
+        lo, hi = sorted((a[k, 1], b[k, 1]))
+        rows = (y >= lo) & (y <= hi)
+        t = (y[rows] - a[k, 1]) / (b[k, 1] - a[k, 1])
+        xs[rows, k] = a[k, 0] + t * (b[k, 0] - a[k, 0])
+    xl, xr = np.nanmin(xs, axis=1), np.nanmax(xs, axis=1)
+    area = h * float((xr - xl).sum())
+    cx = h * float(((xr**2 - xl**2) / 2).sum()) / area
+    cy = h * float((y * (xr - xl)).sum()) / area
+    j = h * float((((xr - cx) ** 3 - (xl - cx) ** 3) / 3 + (y - cy) ** 2 * (xr - xl)).sum())
+    return area, np.array([cx, cy]), j
+
+
+def inward_normals(v: np.ndarray) -> np.ndarray:
+    """Unit normals of the edges v_k -> v_k+1 of a CCW polygon, pointing into it."""
+    d = np.roll(v, -1, axis=0) - v
+    n = np.stack([-d[:, 1], d[:, 0]], axis=1)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def tipping_moments(v: np.ndarray, n_samples: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """Moments of unit frictionless contact forces on the exposed perimeter (section 2.4).
+
+    Contacts are sampled on every edge not lying on the support and, at every vertex above
+    the support, over the cone of normals between its two edges' normals. Returns the
+    moments about the right and the left end of the supporting edge: a force tips the
+    object about the right end (is in the right tippability region) when its moment there
+    is clockwise (< 0), i.e. of the sense of the left support force; symmetrically about
+    the left end with a counter-clockwise moment (> 0).
+    """
+    on_support = np.isclose(v[:, 1], 0.0, atol=1e-12)
+    base_x = v[on_support, 0]
+    r_left, r_right = np.array([base_x.min(), 0.0]), np.array([base_x.max(), 0.0])
+    n_in = inward_normals(v)
+    points, normals = [], []
+    k_count = len(v)
+    for k in range(k_count):
+        nxt = (k + 1) % k_count
+        if not (on_support[k] and on_support[nxt]):
+            t = np.linspace(0.0, 1.0, n_samples)[:, None]
+            points.append(v[k] + t * (v[nxt] - v[k]))
+            normals.append(np.repeat(n_in[k][None], n_samples, axis=0))
+        if not on_support[k]:
+            a0 = math.atan2(n_in[k - 1, 1], n_in[k - 1, 0])
+            a1 = math.atan2(n_in[k, 1], n_in[k, 0])
+            da = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
+            ang = a0 + da * np.linspace(0.0, 1.0, n_samples)
+            points.append(np.repeat(v[k][None], n_samples, axis=0))
+            normals.append(np.stack([np.cos(ang), np.sin(ang)], axis=1))
+    p, n = np.concatenate(points), np.concatenate(normals)
+
+    def moment(r: np.ndarray) -> np.ndarray:
+        d = p - r
+        return d[:, 0] * n[:, 1] - d[:, 1] * n[:, 0]
+
+    return moment(r_right), moment(r_left)
+
+
+def cyclic_shape_signature(v: np.ndarray) -> list[tuple[float, float]]:
+    """(edge length, turning angle at its end vertex) for each edge, rounded."""
+    d = np.roll(v, -1, axis=0) - v
+    length = np.linalg.norm(d, axis=1)
+    dn = np.roll(d, -1, axis=0)
+    turn = np.arctan2(d[:, 0] * dn[:, 1] - d[:, 1] * dn[:, 0], (d * dn).sum(axis=1))
+    return [(round(float(a), 9), round(float(b), 9)) for a, b in zip(length, turn, strict=True)]
+
+
+def has_mirror_symmetry(v: np.ndarray) -> bool:
+    """True when some reflection maps the polygon onto itself."""
+    # A reflection reverses the vertex order: compare the signature with every rotation of
+    # the signature of the reversed polygon.
+    sig = cyclic_shape_signature(v)
+    rev = cyclic_shape_signature(v[::-1].copy())
+    rev = [(le, -tu) for le, tu in rev]  # reversing the order flips the sense of turning
+    return any(sig == rev[s:] + rev[:s] for s in range(len(sig)))
+
+
+def assert_same_scene(a: Scene, b: Scene) -> None:
+    assert (a.name, a.gravity) == (b.name, b.gravity)
+    assert a.palm.width == b.palm.width and a.palm.thickness == b.palm.thickness
+    np.testing.assert_array_equal(a.palm.pose, b.palm.pose)
+    for fa, fb in zip(a.fingers, b.fingers, strict=True):
+        assert (fa.length, fa.thickness, fa.angle, fa.limits, fa.torque_limits) == (
+            fb.length,
+            fb.thickness,
+            fb.angle,
+            fb.limits,
+            fb.torque_limits,
+        )
+    np.testing.assert_array_equal(a.object.vertices_B, b.object.vertices_B)
+    np.testing.assert_array_equal(a.object.start_pose, b.object.start_pose)
+    assert (a.object.mass, a.object.inertia) == (b.object.mass, b.object.inertia)
+
+
+# ---------------------------------------------------------------------------------------
+# Bundled scenes
+# ---------------------------------------------------------------------------------------
+
+
+def test_bundled_scenes_lists_every_file() -> None:
+    assert bundled_scenes() == SCENE_FILES
+    assert set(REQUIRED_SCENES) <= set(SCENE_FILES)
+
+
+def test_scene_error_is_a_value_error() -> None:
+    assert issubclass(SceneError, ValueError)
+
+
+@pytest.mark.parametrize("name", SCENE_FILES, ids=SCENE_FILES)
+def test_bundled_scene_loads_by_name_path_and_dict(name: str) -> None:
+    path = SCENES_DIR / f"{name}.yaml"
+    by_name = load_scene(name)
+    assert isinstance(by_name, Scene)
+    assert by_name.name == name
+    assert load_scene(by_name) is by_name
+    for other in (load_scene(path), load_scene(str(path)), load_scene(raw_scene(name))):
+        assert_same_scene(by_name, other)
+    assert Path(load_scene(path).source).resolve() == path.resolve()
+
+
+@pytest.mark.parametrize("name", SCENE_FILES, ids=SCENE_FILES)
+def test_bundled_scene_documents_itself(name: str) -> None:
+    lines = (SCENES_DIR / f"{name}.yaml").read_text().splitlines()
+    assert lines[0].startswith(f"# {name}:"), "a scene starts with a comment naming it"
+    comment = lines[: next(i for i, ln in enumerate(lines) if not ln.startswith("#"))]
+    assert len(comment) >= 4 and any("Exercises" in ln for ln in comment)
+    assert raw_scene(name)["name"] == name
+
+
+@pytest.mark.parametrize("name", SCENE_FILES, ids=SCENE_FILES)
+def test_bundled_scene_start_conventions(name: str) -> None:
+    """Object resting stably on y = 0, CCW; hand level, fingers hanging, nothing touching."""
+    raw = raw_scene(name)
+    v = np.array(raw["object"]["vertices"], dtype=float)
+    area, c = fan_area_centroid(v)
+    assert area > 0, "vertices are counter-clockwise"
+    assert v[:, 1].min() == 0.0
+    on_support = v[:, 1] == 0.0
+    assert np.sum(on_support) == 2 and any(
+        on_support[k] and on_support[(k + 1) % len(v)] for k in range(len(v))
+    ), "the lowest edge lies on the support"
+    base = v[on_support, 0]
+    assert base.min() < c[0] < base.max(), "the centroid is over the base: stable at rest"
+
+    xp, yp, thp = raw["palm"]["pose"]
+    w = raw["palm"]["width"]
+    assert thp == 0.0
+    lengths = [f["length"] for f in raw["fingers"]]
+    for f in raw["fingers"]:
+        assert f["angle"] == pytest.approx(-HALF_PI, abs=1e-15)
+    # Fingers hang at x = xp -+ w/2 with their bodies outside: the object is strictly inside.
+    assert xp - w / 2 < v[:, 0].min() and v[:, 0].max() < xp + w / 2
+    assert v[:, 1].max() < yp, "the object is lower than the palm"
+    assert yp == pytest.approx(max(max(lengths), v[:, 1].max()) + PALM_MARGIN, abs=1e-12)
+    tips_y = [
+        yp + L * math.sin(thp + f["angle"]) for L, f in zip(lengths, raw["fingers"], strict=True)
+    ]
+    assert min(tips_y) > 0.0, "no finger reaches the support"
+
+
+@pytest.mark.parametrize("name", SCENE_FILES, ids=SCENE_FILES)
+def test_object_mass_is_density_times_area(name: str) -> None:
+    raw = raw_scene(name)
+    scene = load_scene(name)
+    area, centroid = fan_area_centroid(np.array(raw["object"]["vertices"], dtype=float))
+    if "mass" in raw["object"]:
+        expected = raw["object"]["mass"]
+    else:
+        expected = raw["object"].get("density", 1.0) * area
+    assert scene.object.mass == pytest.approx(expected, rel=1e-12)
+    np.testing.assert_allclose(scene.object.start_pose, [*centroid, 0.0], atol=1e-12)
+    palm = raw["palm"]
+    assert scene.palm.mass == pytest.approx(
+        palm.get("density", 1.0) * palm["width"] * palm.get("thickness", 0.15), rel=1e-12
+    )
+    for spec, f in zip(scene.fingers, raw["fingers"], strict=True):
+        assert spec.mass == pytest.approx(
+            f.get("density", 1.0) * f["length"] * f.get("thickness", 0.05), rel=1e-12
+        )
+
+
+@pytest.mark.parametrize("name", SCENE_FILES, ids=SCENE_FILES)
+def test_object_inertia_matches_sliced_integration(name: str) -> None:
+    scene = load_scene(name)
+    area, centroid, j = sliced_mass_properties(
+        np.array(raw_scene(name)["object"]["vertices"], float)
+    )
+    np.testing.assert_allclose(scene.object.start_pose[:2], centroid, atol=1e-9)
+    assert scene.object.inertia == pytest.approx(scene.object.mass * j / area, rel=1e-6)
+
+
+# ---------------------------------------------------------------------------------------
+# The paper's section-4 set-up (Fig. 13)
+# ---------------------------------------------------------------------------------------
+
+
+def test_fig13_matches_the_paper_setup() -> None:
+    raw = raw_scene("fig13")
+    scene = load_scene("fig13")
+    v = np.array(raw["object"]["vertices"], dtype=float)
+    _, centroid = fan_area_centroid(v)
+
+    assert scene.palm.width == 1.0
+    assert [f.length for f in scene.fingers] == [0.6, 0.7]
+    xp, yp, thp = scene.palm.pose
+    assert xp == pytest.approx(centroid[0], abs=1e-12), "palm centred over the object"
+    assert thp == 0.0, "palm parallel to the support"
+    assert [f.angle for f in scene.fingers] == pytest.approx([-HALF_PI, -HALF_PI], abs=1e-15)
+    # "just high enough so that the longer finger could not touch the support"
+    tip2_y = yp + 0.7 * math.sin(thp + scene.fingers[1].angle)
+    assert tip2_y == pytest.approx(PALM_MARGIN, abs=1e-12)
+    assert 0.0 < tip2_y <= 0.02
+    assert v[:, 1].max() < yp
+
+    # Width 0.4 (min distance between parallel supporting lines). Sampling 20000 directions
+    # overestimates a kinked minimum by at most extent * pi / 20000 < 1e-4.
+    assert width_by_projection(v) == pytest.approx(0.4, abs=1e-4)
+
+    # Masses proportional to areas; torque limits that do not matter.
+    assert scene.palm.density == 1.0
+    assert all(f.density == 1.0 for f in scene.fingers)
+    assert raw["object"]["density"] == 1.0 and "mass" not in raw["object"]
+    for f in scene.fingers:
+        assert f.torque_limits[0] <= -50.0 and f.torque_limits[1] >= 50.0
+
+    assert len(v) in (4, 5) and not has_mirror_symmetry(v), "irregular, not symmetric"
+
+
+def test_fig13_object_is_tippable_from_both_sides() -> None:
+    v = np.array(raw_scene("fig13")["object"]["vertices"], dtype=float)
+    m_right, m_left = tipping_moments(v)
+    assert (m_right < -1e-3).any(), "some contacts unload the left support contact"
+    assert (m_left > 1e-3).any(), "some contacts unload the right support contact"
+
+
+def test_flat_trapezoid_has_empty_tippability_regions() -> None:
+    v = np.array(raw_scene("flat_trapezoid")["object"]["vertices"], dtype=float)
+    m_right, m_left = tipping_moments(v)
+    assert m_right.min() >= -1e-12
+    assert m_left.max() <= 1e-12
+
+
+def test_symmetry_check_detects_a_symmetric_polygon() -> None:
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    kite = np.array([[0, 0], [1, 0.5], [0, 2], [-1, 0.5]], dtype=float)
+    assert has_mirror_symmetry(square) and has_mirror_symmetry(kite)
+    assert not has_mirror_symmetry(np.array([[0, 0], [1, 0], [0.2, 0.7]], dtype=float))
+
+
+# ---------------------------------------------------------------------------------------
+# Mass properties against closed forms and numerical integration
+# ---------------------------------------------------------------------------------------
+
+
+def free_object_scene(vertices: list[list[float]], **mass: float) -> dict[str, Any]:
+    """A scene dict for an object with the hand above it and the fingers spread level."""
+    v = np.array(vertices, dtype=float)
+    return {
+        "name": "free_object",
+        "palm": {"width": 1.0, "pose": [float(v[:, 0].mean()), float(v[:, 1].max()) + 0.1, 0.0]},
+        "fingers": [{"length": 0.6, "angle": -math.pi}, {"length": 0.7, "angle": 0.0}],
+        "object": {"vertices": vertices, **mass},
+    }
+
+
+RECTANGLES = [
+    pytest.param(1.0, 1.0, {"density": 1.0}, id="unit-square-density-1"),
+    pytest.param(1.0, 1.0, {"mass": 3.0}, id="unit-square-mass-3"),
+    pytest.param(0.3, 0.5, {"density": 2.5}, id="rect-0.3x0.5-density-2.5"),
+    pytest.param(2.0, 0.2, {"mass": 0.7}, id="rect-2x0.2-mass-0.7"),
+]
+
+
+@pytest.mark.parametrize(("a", "b", "mass_spec"), RECTANGLES)
+def test_rectangle_inertia_closed_form(a: float, b: float, mass_spec: dict[str, float]) -> None:
+    scene = scene_from_dict(free_object_scene([[0, 0], [a, 0], [a, b], [0, b]], **mass_spec))
+    m = mass_spec.get("mass", mass_spec.get("density", 1.0) * a * b)
+    assert scene.object.mass == pytest.approx(m, rel=1e-12)
+    assert scene.object.inertia == pytest.approx(m * (a * a + b * b) / 12.0, rel=1e-12)
+    np.testing.assert_allclose(scene.object.start_pose, [a / 2, b / 2, 0.0], atol=1e-15)
+
+
+TRIANGLES = [
+    pytest.param([[-0.2, 0.0], [0.2, 0.0], [0.05, 0.35]], id="triangle-scene"),
+    pytest.param([[0.0, 0.0], [0.5, 0.0], [0.0, 0.3]], id="right-angled"),
+    pytest.param([[0.0, 0.0], [0.6, 0.0], [0.9, 0.1]], id="obtuse-flat"),
+]
+
+
+@pytest.mark.parametrize("vertices", TRIANGLES)
+def test_triangle_inertia_by_grid_integration(vertices: list[list[float]]) -> None:
+    scene = scene_from_dict(free_object_scene(vertices, density=1.0))
+    v = np.array(vertices, dtype=float)
+    n = 1500
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    gx = lo[0] + (hi[0] - lo[0]) * (np.arange(n) + 0.5) / n
+    gy = lo[1] + (hi[1] - lo[1]) * (np.arange(n) + 0.5) / n
+    x, y = np.meshgrid(gx, gy)
+    inside = np.ones_like(x, dtype=bool)
+    for k in range(3):
+        (ax, ay), (bx, by) = v[k], v[(k + 1) % 3]
+        inside &= (bx - ax) * (y - ay) - (by - ay) * (x - ax) >= 0
+    xs, ys = x[inside], y[inside]
+    cx, cy = xs.mean(), ys.mean()
+    # Per unit mass: the grid's cell area cancels.
+    k2_grid = float(((xs - cx) ** 2 + (ys - cy) ** 2).mean())
+    assert scene.object.inertia / scene.object.mass == pytest.approx(k2_grid, rel=1e-3)
+    # Closed form for a triangle about its centroid: m (a^2 + b^2 + c^2) / 36.
+    sides = np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1)
+    assert scene.object.inertia == pytest.approx(
+        scene.object.mass * float((sides**2).sum()) / 36.0, rel=1e-12
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Malformed scenes: each derived from fig13 by one change
+# ---------------------------------------------------------------------------------------
+
+BASE = raw_scene("fig13")
+FIG13_V = BASE["object"]["vertices"]
+STAR = [  # vertices 0, 2, 4, 1, 3 of a regular pentagon: every turn is a left turn
+    [
+        0.015 + 0.15 * math.cos(HALF_PI + 2 * math.pi * k / 5),
+        0.2 + 0.15 * math.sin(HALF_PI + 2 * math.pi * k / 5),
+    ]
+    for k in (0, 2, 4, 1, 3)
+]
+
+
+def _get(d: Any, path: tuple) -> Any:
+    for k in path:
+        d = d[k]
+    return d
+
+
+def setv(path: tuple, value: Any) -> Callable[[dict], None]:
+    def change(d: dict) -> None:
+        _get(d, path[:-1])[path[-1]] = value
+
+    return change
+
+
+def delv(path: tuple) -> Callable[[dict], None]:
+    def change(d: dict) -> None:
+        del _get(d, path[:-1])[path[-1]]
+
+    return change
+
+
+def shift_object(dx: float, dy: float) -> Callable[[dict], None]:
+    return setv(("object", "vertices"), [[x + dx, y + dy] for x, y in FIG13_V])
+
+
+def both(*changes: Callable[[dict], None]) -> Callable[[dict], None]:
+    def change(d: dict) -> None:
+        for c in changes:
+            c(d)
+
+    return change
+
+
+F0, F1 = ("fingers", 0), ("fingers", 1)
+OV = ("object", "vertices")
+
+
+def bad(
+    case_id: str,
+    change: Callable[[dict], None],
+    field: str,
+    value: str,
+) -> Any:
+    """A malformed scene: ``change`` applied to fig13 must raise a SceneError matching
+    ``field`` (the field's name) whose message also matches ``value`` (the offending value)."""
+    return pytest.param(case_id, change, field, value, id=case_id)
+
+
+BAD_SCENES = [
+    # -- polygon -------------------------------------------------------------------------
+    bad(
+        "nonconvex",
+        setv(OV, [*FIG13_V[:3], [0.0, 0.1], FIG13_V[4]]),
+        r"object\.vertices",
+        r"\[0\.0, 0\.1\]",
+    ),
+    bad("clockwise", setv(OV, FIG13_V[::-1]), r"object\.vertices.*clockwise", r"\[0\.33, 0\.24\]"),
+    bad(
+        "repeated-adjacent",
+        setv(OV, [*FIG13_V[:3], FIG13_V[2], *FIG13_V[3:]]),
+        r"object\.vertices\[2\] and \[3\]",
+        r"\[0\.33, 0\.24\]",
+    ),
+    bad(
+        "repeated-closing",
+        setv(OV, [*FIG13_V, FIG13_V[0]]),
+        r"object\.vertices\[5\] and \[0\]",
+        r"\[-0\.13, 0\.0\]",
+    ),
+    bad(
+        "repeated-nonadjacent",
+        setv(OV, [*FIG13_V, FIG13_V[1]]),
+        r"object\.vertices",
+        r"\[0\.15, 0\.0\]\]$",
+    ),
+    bad(
+        "two-vertices",
+        setv(OV, FIG13_V[:2]),
+        r"object\.vertices.*at least 3",
+        r"\[\[-0\.13, 0\.0\], \[0\.15, 0\.0\]\]",
+    ),
+    bad(
+        "collinear",
+        setv(OV, [[-0.1, 0.0], [0.0, 0.0], [0.1, 0.0]]),
+        r"object\.vertices",
+        r"\[0\.1, 0\.0\]",
+    ),
+    bad(
+        "self-intersecting-star",
+        setv(OV, STAR),
+        r"object\.vertices",
+        r"\[",
+    ),
+    bad(
+        "vertex-three-coords",
+        setv((*OV, 0), [-0.13, 0.0, 0.0]),
+        r"object\.vertices\[0\]",
+        r"\[-0\.13, 0\.0, 0\.0\]",
+    ),
+    bad("vertices-not-list", setv(OV, "square"), r"object\.vertices", r"'square'"),
+    # -- non-positive sizes ---------------------------------------------------------------
+    bad("palm-width-zero", setv(("palm", "width"), 0.0), r"palm\.width", r"0\.0"),
+    bad("palm-width-negative", setv(("palm", "width"), -1.0), r"palm\.width", r"-1\.0"),
+    bad("palm-thickness-zero", setv(("palm", "thickness"), 0), r"palm\.thickness", r"got 0"),
+    bad("finger1-length-zero", setv((*F0, "length"), 0.0), r"fingers\[0\]\.length", r"0\.0"),
+    bad("finger2-length-negative", setv((*F1, "length"), -0.7), r"fingers\[1\]\.length", r"-0\.7"),
+    bad(
+        "finger1-thickness-negative",
+        setv((*F0, "thickness"), -0.05),
+        r"fingers\[0\]\.thickness",
+        r"-0\.05",
+    ),
+    bad("palm-density-zero", setv(("palm", "density"), 0.0), r"palm\.density", r"0\.0"),
+    bad(
+        "finger2-density-negative", setv((*F1, "density"), -1.0), r"fingers\[1\]\.density", r"-1\.0"
+    ),
+    bad("object-density-zero", setv(("object", "density"), 0.0), r"object\.density", r"0\.0"),
+    bad(
+        "object-mass-negative",
+        both(delv(("object", "density")), setv(("object", "mass"), -0.2)),
+        r"object\.mass",
+        r"-0\.2",
+    ),
+    bad(
+        "object-mass-zero",
+        both(delv(("object", "density")), setv(("object", "mass"), 0)),
+        r"object\.mass",
+        r"got 0",
+    ),
+    bad("gravity-zero", setv(("gravity",), 0.0), r"gravity", r"0\.0"),
+    bad("gravity-negative", setv(("gravity",), -9.81), r"gravity", r"-9\.81"),
+    # -- placement at the start -----------------------------------------------------------
+    bad(
+        "object-below-support",
+        shift_object(0.0, -0.05),
+        r"object\.vertices.*below the support",
+        r"-0\.0[45]\d*",
+    ),
+    bad(
+        "object-overlaps-finger2",
+        shift_object(0.2, 0.0),
+        r"fingers\[1\].*overlaps the object",
+        r"by 0\.\d+",
+    ),
+    bad(
+        "object-overlaps-finger1",
+        shift_object(-0.2, 0.0),
+        r"fingers\[0\].*overlaps the object",
+        r"by 0\.\d+",
+    ),
+    bad(
+        "object-overlaps-palm",
+        both(
+            setv(("palm", "pose"), [BASE["palm"]["pose"][0], 0.35, 0.0]),
+            setv((*F0, "angle"), -math.pi),
+            setv((*F1, "angle"), 0.0),
+        ),
+        r"palm\.pose.*overlaps the object",
+        r"by 0\.0[45]\d*",
+    ),
+    bad(
+        "finger2-enters-support",
+        setv((*F1, "length"), 0.75),
+        r"fingers\[1\].*inside the support",
+        r"-0\.0[45]\d*",
+    ),
+    bad(
+        "tilted-palm-finger1-enters-support",
+        setv(("palm", "pose"), [BASE["palm"]["pose"][0], 0.71, 0.3]),
+        r"fingers\[0\].*inside the support",
+        r"-0\.02\d*",
+    ),
+    bad(
+        "palm-below-support",
+        setv(("palm", "pose"), [3.0, -0.2, 0.0]),
+        r"palm\.pose.*inside the support",
+        r"-0\.2",
+    ),
+    # -- joint angles and limits ----------------------------------------------------------
+    bad("finger1-angle-above-limit", setv((*F0, "angle"), 0.5), r"fingers\[0\]\.angle", r"0\.5"),
+    bad("finger2-angle-below-limit", setv((*F1, "angle"), -4.0), r"fingers\[1\]\.angle", r"-4\.0"),
+    bad(
+        "finger1-limits-reversed",
+        setv((*F0, "limits"), [0.0, -math.pi]),
+        r"fingers\[0\]\.limits",
+        r"\[0\.0, -3\.14",
+    ),
+    bad(
+        "finger2-torque-limits-reversed",
+        setv((*F1, "torque_limits"), [50.0, -50.0]),
+        r"fingers\[1\]\.torque_limits",
+        r"\[50\.0, -50\.0\]",
+    ),
+    bad(
+        "finger1-limits-one-number",
+        setv((*F0, "limits"), [-3.0]),
+        r"fingers\[0\]\.limits",
+        r"\[-3\.0\]",
+    ),
+    # -- NaN and infinity -----------------------------------------------------------------
+    bad("palm-pose-nan", setv(("palm", "pose", 0), math.nan), r"palm\.pose\[0\]", r"nan"),
+    bad("palm-pose-inf", setv(("palm", "pose", 1), math.inf), r"palm\.pose\[1\]", r"inf"),
+    bad("vertex-nan", setv((*OV, 2, 1), math.nan), r"object\.vertices\[2\]\[1\]", r"nan"),
+    bad("vertex-minus-inf", setv((*OV, 0, 0), -math.inf), r"object\.vertices\[0\]\[0\]", r"-inf"),
+    bad("finger1-length-inf", setv((*F0, "length"), math.inf), r"fingers\[0\]\.length", r"inf"),
+    bad("finger2-angle-nan", setv((*F1, "angle"), math.nan), r"fingers\[1\]\.angle", r"nan"),
+    bad("gravity-nan", setv(("gravity",), math.nan), r"gravity", r"nan"),
+    bad(
+        "finger1-limit-nan",
+        setv((*F0, "limits"), [math.nan, 0.0]),
+        r"fingers\[0\]\.limits\[0\]",
+        r"nan",
+    ),
+    bad(
+        "palm-width-int-too-big-for-float",
+        setv(("palm", "width"), 10**400),
+        r"palm\.width",
+        r"1000",
+    ),
+    # -- wrong types ----------------------------------------------------------------------
+    bad("palm-width-string", setv(("palm", "width"), "1.0"), r"palm\.width", r"'1\.0'"),
+    bad("gravity-string", setv(("gravity",), "9.81 m/s^2"), r"gravity", r"'9\.81 m/s\^2'"),
+    bad("vertex-string", setv((*OV, 1), "0.15, 0.0"), r"object\.vertices\[1\]", r"'0\.15, 0\.0'"),
+    bad("finger1-angle-bool", setv((*F0, "angle"), True), r"fingers\[0\]\.angle", r"True"),
+    bad("object-density-bool", setv(("object", "density"), True), r"object\.density", r"True"),
+    bad("palm-pose-entry-bool", setv(("palm", "pose", 2), False), r"palm\.pose\[2\]", r"False"),
+    bad("finger2-length-none", setv((*F1, "length"), None), r"fingers\[1\]\.length", r"None"),
+    bad("name-not-string", setv(("name",), 13), r"name", r"13"),
+    bad("palm-not-mapping", setv(("palm",), None), r"palm", r"None"),
+    bad("finger-not-mapping", setv(F0, 0.6), r"fingers\[0\]", r"0\.6"),
+    # -- wrong lengths --------------------------------------------------------------------
+    bad(
+        "palm-pose-two-numbers",
+        setv(("palm", "pose"), [0.0, 0.71]),
+        r"palm\.pose",
+        r"\[0\.0, 0\.71\]",
+    ),
+    bad(
+        "palm-pose-four-numbers",
+        setv(("palm", "pose"), [0.0, 0.71, 0.0, 0.0]),
+        r"palm\.pose",
+        r"\[0\.0, 0\.71, 0\.0, 0\.0\]",
+    ),
+    bad("palm-pose-scalar", setv(("palm", "pose"), 0.71), r"palm\.pose", r"0\.71"),
+    # -- unknown and missing keys ---------------------------------------------------------
+    bad("unknown-top-key", setv(("friction",), 0.3), r"scene: unknown key", r"'friction'"),
+    bad("unknown-palm-key", setv(("palm", "mass"), 1.0), r"palm: unknown key", r"'mass'"),
+    bad(
+        "unknown-finger-key", setv((*F1, "radius"), 0.02), r"fingers\[1\]: unknown key", r"'radius'"
+    ),
+    bad(
+        "unknown-object-key", setv(("object", "colour"), "red"), r"object: unknown key", r"'colour'"
+    ),
+    bad("missing-object", delv(("object",)), r"scene: missing key", r"'object'"),
+    bad("missing-fingers", delv(("fingers",)), r"scene: missing key", r"'fingers'"),
+    bad("missing-palm", delv(("palm",)), r"scene: missing key", r"'palm'"),
+    bad("missing-palm-pose", delv(("palm", "pose")), r"palm: missing key", r"'pose'"),
+    bad("missing-palm-width", delv(("palm", "width")), r"palm: missing key", r"'width'"),
+    bad("missing-finger1-length", delv((*F0, "length")), r"fingers\[0\]: missing key", r"'length'"),
+    bad("missing-finger2-angle", delv((*F1, "angle")), r"fingers\[1\]: missing key", r"'angle'"),
+    bad("missing-object-vertices", delv(OV), r"object: missing key", r"'vertices'"),
+    # -- finger count, mass and density ---------------------------------------------------
+    bad(
+        "three-fingers",
+        setv(("fingers",), [*BASE["fingers"], {"length": 0.65, "angle": -HALF_PI}]),
+        r"fingers.*exactly two",
+        r"'length': 0\.65",
+    ),
+    bad(
+        "one-finger",
+        setv(("fingers",), BASE["fingers"][:1]),
+        r"fingers.*exactly two",
+        r"'length': 0\.6",
+    ),
+    bad(
+        "fingers-mapping",
+        setv(("fingers",), {"left": BASE["fingers"][0]}),
+        r"fingers.*exactly two",
+        r"'left'",
+    ),
+    bad(
+        "density-and-mass",
+        setv(("object", "mass"), 0.5),
+        r"object.*density.*mass",
+        r"0\.5",
+    ),
+]
+
+
+@pytest.mark.parametrize(("case_id", "change", "field", "value"), BAD_SCENES)
+def test_bad_scene_is_refused(case_id: str, change: Callable, field: str, value: str) -> None:
+    d = copy.deepcopy(BASE)
+    change(d)
+    with pytest.raises(SceneError, match=field) as info:
+        load_scene(d)
+    # Some messages show numpy scalars as np.float64(x) (numpy >= 2 repr); read them as x.
+    message = re.sub(r"np\.float64\(([^()]*)\)", r"\1", str(info.value))
+    assert re.search(value, message), f"{case_id}: value not in {str(info.value)!r}"
+
+
+def test_bad_scene_cases_change_a_valid_scene() -> None:
+    load_scene(copy.deepcopy(BASE))  # the base itself is valid
+    assert len(BAD_SCENES) >= 25
+    assert len({p.id for p in BAD_SCENES}) == len(BAD_SCENES)
+
+
+def test_infinite_torque_limits_are_accepted() -> None:
+    d = copy.deepcopy(BASE)
+    d["fingers"][0]["torque_limits"] = [-math.inf, math.inf]
+    assert load_scene(d).fingers[0].torque_limits == (-math.inf, math.inf)
+
+
+# ---------------------------------------------------------------------------------------
+# Bad names, paths and files
+# ---------------------------------------------------------------------------------------
+
+
+def test_unknown_bundled_name_is_refused() -> None:
+    with pytest.raises(SceneError, match=r"scene 'fig14' is not a bundled scene") as info:
+        load_scene("fig14")
+    assert "fig13" in str(info.value), "the message lists the bundled scenes"
+
+
+def test_missing_path_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "missing.yaml"
+    with pytest.raises(SceneError, match=r"scene file .* cannot be read") as info:
+        load_scene(path)
+    assert str(path) in str(info.value)
+
+
+def test_directory_path_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(SceneError, match=r"scene file .* cannot be read"):
+        load_scene(tmp_path)
+
+
+@pytest.mark.parametrize("spec", [42, None, 1.5, ["fig13"]], ids=["int", "none", "float", "list"])
+def test_spec_of_wrong_type_is_refused(spec: Any) -> None:
+    with pytest.raises(SceneError, match=r"scene must be a bundled name, a path or a dict"):
+        load_scene(spec)
+
+
+BAD_FILES = [
+    pytest.param(
+        "palm: [1.0, 2.0\nfingers: x\n", r"scene file .* is not valid YAML", id="unclosed-bracket"
+    ),
+    pytest.param(
+        "palm:\n  width: 1.0\n\tpose: [0, 1, 0]\n",
+        r"scene file .* is not valid YAML",
+        id="tab-indent",
+    ),
+    pytest.param("", r"scene must be a mapping, got None", id="empty-file"),
+    pytest.param(
+        "- fig13\n- square\n", r"scene must be a mapping, got \['fig13', 'square'\]", id="list"
+    ),
+    pytest.param(
+        "!!python/object:os.system {}\n", r"scene file .* is not valid YAML", id="python-tag"
+    ),
+]
+
+
+@pytest.mark.parametrize(("text", "pattern"), BAD_FILES)
+def test_unparsable_yaml_file_is_refused(tmp_path: Path, text: str, pattern: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(SceneError, match=pattern) as info:
+        load_scene(path)
+    if "YAML" in pattern:
+        assert str(path) in str(info.value)
+
+
+def test_non_utf8_file_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.yaml"
+    path.write_bytes("name: caf\u00e9\n".encode("latin-1"))
+    with pytest.raises(SceneError, match=r"scene file .*latin1\.yaml"):
+        load_scene(path)
+
+
+YAML_EDITS = [
+    pytest.param(
+        "  width: 1.0", "  width: .nan", r"palm\.width must be finite, got nan", id="nan-width"
+    ),
+    pytest.param(
+        "  - {length: 0.6",
+        "  - {length: .inf",
+        r"fingers\[0\]\.length must be finite, got inf",
+        id="inf-length",
+    ),
+    pytest.param(
+        "pose: [0.014953080375357005",
+        "pose: [.nan",
+        r"palm\.pose\[0\] must be finite, got nan",
+        id="nan-pose",
+    ),
+    # YAML 1.1 (PyYAML) reads an exponent without a dot as a string: the message shows it.
+    pytest.param(
+        "gravity: 9.81",
+        "gravity: 1e1",
+        r"gravity must be a number, got '1e1'",
+        id="exponent-no-dot",
+    ),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "pattern"), YAML_EDITS)
+def test_bad_number_in_yaml_file_is_refused(
+    tmp_path: Path, old: str, new: str, pattern: str
+) -> None:
+    text = (SCENES_DIR / "fig13.yaml").read_text()
+    assert text.count(old) == 1
+    path = tmp_path / "edited.yaml"
+    path.write_text(text.replace(old, new))
+    with pytest.raises(SceneError, match=pattern):
+        load_scene(path)
