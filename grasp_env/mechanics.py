@@ -141,14 +141,15 @@ def force_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
 def motion_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> MotionLP:
     """Object motion for a hand velocity: both formulations, checked against each other.
 
-    The velocity LP gives the object twist and the force LP the contact forces; their optima
-    agree by LP duality (eq. 19 = eq. 22), which is how the simulator cross-checks a solve.
+    The velocity LP gives the object twist and its dual values the contact forces, which solve
+    the force LP (their optima agree by duality, eq. 19 = eq. 22; the tests check it with
+    :func:`force_lp`).
     """
     vel = velocity_lp(V, xi_, weight)
     if vel.status != "optimal":
         return MotionLP(vel.status, None, None, vel.value)
-    frc = force_lp(V, xi_, weight)
-    return MotionLP("optimal", vel.x, frc.x, vel.value)
+    # The force LP's solution is the velocity LP's dual (HiGHS marginals of V v >= xi).
+    return MotionLP("optimal", vel.x, -vel.duals_ub, vel.value)
 
 
 def _state_arrays(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -179,7 +179,6 @@ class Simulator:
         dh = h1 - h0
         s = 0.0
         banned: set = set()
-        stalls = 0
         if not np.any(dh) or s_end <= 0.0:
             return self._fall_if_needed(q, h0, 0.0, events), 0.0, False
         for _ in range(self.max_iterations):
@@ -203,16 +202,27 @@ class Simulator:
                 banned = set()
                 continue
             s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
-            stalls = stalls + 1 if s_star - s < 1e-13 else 0
-            if stalls > 4:
-                raise SimulationError(f"no progress at s = {s}: {event} with active set {E}")
             if s_star - s < 1e-13:
-                # No progress: the offending contact cannot stay active here; drop it.
-                if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and event.contacts:
-                    if event.contacts[0] in banned:
-                        raise SimulationError(f"stuck at s={s} on {event}")
-                    banned.add(event.contacts[0])
-                    continue
+                key = event.contacts[0] if event.contacts else None
+                if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and key is not None:
+                    if key not in banned:
+                        # The offending contact cannot stay active here: plan without it.
+                        banned.add(key)
+                        continue
+                if event.kind == "lost_contact":
+                    # The object sits on the boundary of equilibrium: just ahead, no contact
+                    # set holds it. Nudge the hand past the boundary and let the object fall.
+                    nudged = self._nudge(q, s, E, v, h0, dh, s_end)
+                    if nudged is not None:
+                        s, q = nudged
+                        q = self._fall(q, h0 + s * dh, s, events)
+                        banned = set()
+                        continue
+                # Nothing consistent lies just ahead: the active contacts' equations fold
+                # (their normals turn concurrent and the forces needed grow without bound) or
+                # no contact can be released. The hand cannot move on: a jam.
+                events.append(Event("jam", s, tuple(E)))
+                return q, s, True
             events.append(Event(event.kind, s_star, event.contacts))
             q, s = q_star, s_star
             banned = set()
@@ -362,6 +372,21 @@ class Simulator:
             else:
                 s_lo, q_lo = mid, q_mid
         return s_lo, q_lo, _event(trigger, s_lo)
+
+    def _nudge(self, q, s, E, v, h0, dh, s_end):
+        """Smallest step along ``E`` (geometrically consistent) after which the touching
+        contacts can no longer hold the object; None if there is none within one step."""
+        ds = 1e-10
+        while ds <= self.max_step and s + ds <= s_end:
+            h = h0 + (s + ds) * dh
+            q_new = self._newton(q + v * ds, h, E)
+            if q_new is None or self._geometry_violation(q_new, h, E) > self.tol:
+                return None
+            pl = ct.Placement(self.scene, q_new, h)
+            if not self._held(pl, ct.detect(pl, self.tol)):
+                return s + ds, q_new
+            ds *= 4.0
+        return None
 
     # ------------------------------------------------------------------ falls
     def _fall_if_needed(
