@@ -181,11 +181,15 @@ class Simulator:
         banned: set = set()
         if not np.any(dh) or s_end <= 0.0:
             return self._fall_if_needed(q, h0, 0.0, events), 0.0, False
+        carry = None  # (E, v) kept from an accepted step whose active set stays valid
         for _ in range(self.max_iterations):
             h = h0 + s * dh
-            pl = ct.Placement(self.scene, q, h)
-            keys = [k for k in ct.detect(pl, self.tol) if k not in banned]
-            plan = self._plan(pl, keys, h, dh)
+            if carry is not None:
+                plan, carry = carry, None
+            else:
+                pl = ct.Placement(self.scene, q, h)
+                keys = [k for k in ct.detect(pl, self.tol) if k not in banned]
+                plan = self._plan(pl, keys, h, dh)
             if plan == "jam":
                 events.append(Event("jam", s, tuple(keys)))
                 return q, s, True
@@ -198,6 +202,10 @@ class Simulator:
             ds = min(self.max_step, s_end - s)
             ok, q_new, trigger = self._try_step(q, s, ds, E, v, h0, dh)
             if ok:
+                if self._determined(q_new, h0 + (s + ds) * dh, E):
+                    # E fixes the pose and holds it with positive forces: it stays the active
+                    # set until an event, so the next step needs no new LP.
+                    carry = (E, (q_new - q) / ds)
                 q, s = q_new, s + ds
                 banned = set()
                 continue
@@ -372,6 +380,21 @@ class Simulator:
             else:
                 s_lo, q_lo = mid, q_mid
         return s_lo, q_lo, _event(trigger, s_lo)
+
+    def _determined(self, q: np.ndarray, h: np.ndarray, E: list) -> bool:
+        """True when ``E`` cannot change before an event: three independent contacts holding
+        the object with forces all clearly positive, or the object resting on the support."""
+        if E and all(k[0] == geo.SUPPORT for k in E):
+            return True  # resting on the support: only a new contact changes that
+        if len(E) != 3:
+            return False
+        pl = ct.Placement(self.scene, q, h)
+        P, N, _ = _arrays(pl, E)
+        W = mech.V_ob(P, N, q[:2]).T
+        if abs(np.linalg.det(W * self._scale[:, None])) < 1e-8:
+            return False
+        lam = np.linalg.solve(W, mech.gravity_wrench(self.scene))
+        return bool(lam.min() > 1e-6 * self.weight)
 
     def _nudge(self, q, s, E, v, h0, dh, s_end):
         """Smallest step along ``E`` (geometrically consistent) after which the touching
