@@ -62,7 +62,7 @@ class Simulator:
         contact_tol: gap below which bodies touch, relative to the palm width (default 1e-9).
             No returned state penetrates deeper; events are located to within it.
         max_step: largest increment of the path parameter ``s`` between consistency checks
-            along a move, as a fraction of the move (default 0.05). Smaller steps cost time;
+            along a move, as a fraction of the move (default 0.25). Smaller steps cost time;
             they matter for moves whose active set leaves the object free directions.
         fall_step: largest object displacement of one step of a fall, relative to the object's
             size (default 0.02).
@@ -73,7 +73,7 @@ class Simulator:
         self,
         scene: Scene | str | dict,
         contact_tol: float = 1e-9,
-        max_step: float = 0.05,
+        max_step: float = 0.25,
         fall_step: float = 0.02,
         max_iterations: int = 10000,
     ) -> None:
