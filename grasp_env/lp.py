@@ -46,6 +46,30 @@ def solve(
     if A_eq is not None and len(A_eq) == 0:
         A_eq = b_eq = None
     res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
+    if res.status == 4:
+        # HiGHS' presolve may only say "infeasible or unbounded": decide without presolve,
+        # and failing that by the feasibility problem (zero objective).
+        res = linprog(
+            c,
+            A_ub=A_ub,
+            b_ub=b_ub,
+            A_eq=A_eq,
+            b_eq=b_eq,
+            bounds=bounds,
+            method="highs",
+            options={"presolve": False},
+        )
+        if res.status == 4:
+            feas = linprog(
+                np.zeros_like(c),
+                A_ub=A_ub,
+                b_ub=b_ub,
+                A_eq=A_eq,
+                b_eq=b_eq,
+                bounds=bounds,
+                method="highs",
+            )
+            res.status = 3 if feas.status == 0 else 2
     status = _STATUS.get(res.status)
     if status is None:
         raise SolverError(f"HiGHS failed: {res.message}", status=f"highs_{res.status}")

@@ -20,8 +20,9 @@ def _min_norm_eq(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     the residual norm. ``w = A^T mu``."""
     if len(A) == 0:
         return np.zeros(3), np.zeros(0), 0.0
-    mu, *_ = np.linalg.lstsq(A @ A.T, b, rcond=1e-12)
-    w = A.T @ mu
+    # lstsq on A itself (not A A^T, which squares the condition number)
+    w, *_ = np.linalg.lstsq(A, b, rcond=1e-13)
+    mu, *_ = np.linalg.lstsq(A.T, w, rcond=1e-13)
     return w, mu, float(np.linalg.norm(A @ w - b))
 
 
