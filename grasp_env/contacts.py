@@ -207,7 +207,13 @@ def _locally_valid(pl: Placement, key: ContactKey, tol: float) -> bool:
         n = pl.obj_n_W[k]  # the hand vertex's neighbours must stay outside the object
     m = len(verts)
     p = verts[v]
-    return bool(n @ (verts[v - 1] - p) >= -tol and n @ (verts[(v + 1) % m] - p) >= -tol)
+    # Nearly flush edges (an edge along an edge) pass: the slack grows with the neighbour's
+    # distance, as for an angle of 1e-7 rad.
+    for nbr in (verts[v - 1], verts[(v + 1) % m]):
+        d = nbr - p
+        if n @ d < -max(tol, 1e-7 * float(np.hypot(d[0], d[1]))):
+            return False
+    return True
 
 
 def detect(pl: Placement, tol: float) -> list[ContactKey]:

@@ -181,6 +181,7 @@ class Simulator:
         banned: set = set()
         if not np.any(dh) or s_end <= 0.0:
             return self._fall_if_needed(q, h0, 0.0, events), 0.0, False
+        stuck_fall = False
         carry = None  # (E, v) kept from an accepted step whose active set stays valid
         for _ in range(self.max_iterations):
             h = h0 + s * dh
@@ -189,12 +190,17 @@ class Simulator:
             else:
                 pl = ct.Placement(self.scene, q, h)
                 keys = [k for k in ct.detect(pl, self.tol) if k not in banned]
-                plan = self._plan(pl, keys, h, dh)
+                plan = self._plan(pl, keys, h, dh, allow_fall=not stuck_fall)
+            stuck_fall = False
             if plan == "jam":
                 events.append(Event("jam", s, tuple(keys)))
                 return q, s, True
             if plan == "fall":
-                q = self._fall(q, h, s, events)
+                q_fallen = self._fall(q, h, s, events)
+                stuck_fall = q_fallen is q  # no way down after all: plan without falling
+                if stuck_fall:
+                    del events[-2:]  # the fall that did not happen
+                q = q_fallen
                 continue
             E, v = plan
             if s >= s_end - 1e-15:
@@ -236,18 +242,25 @@ class Simulator:
             banned = set()
         raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
 
-    def _plan(self, pl: ct.Placement, keys: list, h: np.ndarray, dh: np.ndarray):
+    def _plan(self, pl: ct.Placement, keys: list, h: np.ndarray, dh: np.ndarray, allow_fall=True):
         """Active set and least-motion velocity for hand velocity ``dh`` at a placement.
 
         Vertex-vertex touches give several candidate contacts at one point whose admissible
         half-planes form a union; each choice is tried and the one with the lowest potential
-        energy rate (the object's choice, eq. 19) is kept.
+        energy rate (the object's choice, eq. 19) is kept. All candidates at once (always
+        admissible) is the last choice. With ``allow_fall=False`` (a fall just found no way
+        down) choices that would fall are skipped.
         """
         best = None
-        for choice in _choices(pl, keys, self.tol):
+        choices = list(_choices(pl, keys, self.tol))
+        if len(choices) > 1:
+            choices.append(keys)
+        for choice in choices:
             res = self._solve_lp(pl, choice, h, dh)
             if res == "fall":
-                return "fall"
+                if allow_fall:
+                    return "fall"
+                continue
             if res == "jam":
                 continue
             if best is None or res[0] < best[0] - 1e-12 * self.weight:
@@ -433,29 +446,47 @@ class Simulator:
         """Quasi-static fall: follow the steepest admissible descent of the potential energy
         (gravity projected on the admissible cone, mass metric) until contacts hold the object."""
         events.append(Event("fall_start", s))
-        g_scaled = np.array([0.0, -1.0, 0.0])  # gravity direction, scaled twist coordinates
         for _ in range(self.max_iterations):
             pl = ct.Placement(self.scene, q, h)
             keys = ct.detect(pl, self.tol)
             if self._held(pl, keys):
                 events.append(Event("fall_end", s, tuple(keys)))
                 return q
-            p, n, _ = _arrays(pl, keys)
-            Cs = mech.V_ob(p, n, pl.com_W) * self._scale
-            # a = argmin |a - g|^2 s.t. C a >= 0  <=>  w = a - g: min |w|^2, C w >= -C g
-            try:
-                w = qp.least_norm(np.zeros((0, 3)), np.zeros(0), Cs, -Cs @ g_scaled)
-            except SolverError as exc:
-                raise SimulationError("fall direction infeasible") from exc
-            a = w + g_scaled
-            if np.linalg.norm(a) < 1e-12:
+            # At a vertex-vertex touch any one candidate's half-plane suffices locally; take
+            # the choice (or all candidates at once, always admissible) whose step lowers the
+            # potential energy most.
+            choices = list(_choices(pl, keys, self.tol))
+            if len(choices) > 1:
+                choices.append(keys)
+            best = None
+            for choice in choices:
+                a, E = self._descent(pl, choice)
+                if np.linalg.norm(a) < 1e-12:
+                    continue
+                d = a * self._scale / np.linalg.norm(a) * self.fall_step
+                q_new = self._fall_step(q, h, E, d)
+                if best is None or q_new[1] < best[1]:
+                    best = q_new
+            if best is None or best[1] > q[1] - 1e-9 * self.size:
+                # no admissible descent lowers the object: it is held
                 events.append(Event("fall_end", s, tuple(keys)))
                 return q
-            tight = (Cs @ a) <= 1e-10
-            E = [k for k, t in zip(keys, tight, strict=True) if t]
-            d = a * self._scale / np.linalg.norm(a) * self.fall_step
-            q = self._fall_step(q, h, E, d)
+            q = best
         raise SimulationError("fall did not come to rest")
+
+    def _descent(self, pl: ct.Placement, keys: list) -> tuple[np.ndarray, list]:
+        """Steepest admissible descent (scaled twist) for contacts ``keys``, and the contacts it
+        keeps closed: ``a = argmin |a - g|^2 s.t. C a >= 0`` (gravity projected on the cone)."""
+        g_scaled = np.array([0.0, -1.0, 0.0])
+        p, n, _ = _arrays(pl, keys)
+        Cs = mech.V_ob(p, n, pl.com_W) * self._scale
+        try:
+            w = qp.least_norm(np.zeros((0, 3)), np.zeros(0), Cs, -Cs @ g_scaled)
+        except SolverError as exc:
+            raise SimulationError("fall direction infeasible") from exc
+        a = w + g_scaled
+        tight = (Cs @ a) <= 1e-10
+        return a, [k for k, t in zip(keys, tight, strict=True) if t]
 
     def _fall_step(self, q: np.ndarray, h: np.ndarray, E: list, d: np.ndarray) -> np.ndarray:
         """One fall step of at most ``d``, shortened to the first new contact or edge end."""

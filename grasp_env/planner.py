@@ -1,0 +1,575 @@
+"""The paper's three-phase grasp planner (section 3.2): pre-liftoff, lifting, grip adjustment.
+
+The planner drives the :class:`~grasp_env.simulator.Simulator` with hand increments and
+records every step (:class:`PlanStep`). It assumes exact knowledge of the scene, as the paper
+does. Phases:
+
+1. **Pre-liftoff.** From the tippability regions (section 2.4): no region, no plan. Else look
+   for a hand placement with one fingertip at a support contact and the other finger touching
+   the object inside the matching region (Fig. 4). If the hand's kinematics allow none, centre
+   the palm over the object, parallel to the support and just above the longer finger's reach
+   of it, close the fingers until they touch, and decide by the velocity LP whether squeezing
+   tips the object (and which support contact breaks).
+2. **Lifting.** Greedy finger (and palm) increments that move the object toward the palm,
+   simulated after every increment, until form closure (the hand jams in form closure).
+   Once the object is off the support the fingertip distance stays below the object's width
+   (Toussaint's no-drop argument); a constrained fall is recovered by lifting on from where
+   the object came to rest.
+3. **Grip adjustment.** Keep four contacts, treat ``q1`` as the independent variable, solve
+   ``q2`` and the object pose from the four contact equations (eq. 28), and step along the
+   finite-difference gradient of ``y*`` (eq. 37). At a five-contact configuration every
+   four-contact branch that keeps form closure is evaluated and the best continued; stop at a
+   local minimum of ``y*``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from grasp_env import contacts as ct
+from grasp_env import geometry as geo
+from grasp_env import kinematics as kin
+from grasp_env import mechanics as mech
+from grasp_env.errors import SolverError
+from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.state import State
+from grasp_env.tippability import tippability_regions
+from grasp_env.width import object_width
+
+PHASES = ("pre-liftoff", "lifting", "grip adjustment")
+
+
+@dataclass(frozen=True)
+class PlanStep:
+    """One step of a plan: the phase, the state reached and its grip objective ``y*``."""
+
+    phase: str
+    state: State
+    grip: float
+    note: str = ""
+
+
+@dataclass
+class Plan:
+    """A grasp plan: its steps, how it ended, and the phase boundaries.
+
+    Attributes:
+        steps: every state the plan passed through, in order.
+        status: ``"form_closure"`` (success), ``"not_tippable"`` (empty tippability regions or
+            no tipping placement), ``"stuck"`` (lifting found no useful increment) or
+            ``"error"``.
+        message: a sentence on how the plan ended.
+        placement: ``"tippability"`` (a fingertip at a support contact, Fig. 4) or
+            ``"centred"`` (the paper's fallback).
+        cpu_time: process time spent planning, seconds.
+    """
+
+    steps: list[PlanStep] = field(default_factory=list)
+    status: str = "error"
+    message: str = ""
+    placement: str = ""
+    cpu_time: float = 0.0
+    branches: list[dict] = field(default_factory=list)
+
+    @property
+    def success(self) -> bool:
+        return self.status == "form_closure"
+
+    def phase_bounds(self) -> dict[str, tuple[int, int]]:
+        """First and last step index of each phase present."""
+        out: dict[str, tuple[int, int]] = {}
+        for i, st in enumerate(self.steps):
+            a, _ = out.get(st.phase, (i, i))
+            out[st.phase] = (a, i)
+        return out
+
+    def form_closure_step(self) -> int | None:
+        """Index of the first step in form closure, or None."""
+        for i, st in enumerate(self.steps):
+            if st.phase != "pre-liftoff" and mech.is_form_closure(st.state):
+                return i
+        return None
+
+
+def _touching_bodies(state: State) -> set[str]:
+    return {c.body for c in state.contacts}
+
+
+def _off_support(state: State) -> bool:
+    return "support" not in _touching_bodies(state)
+
+
+def _hand_clear(scene, h: np.ndarray, q_obj: np.ndarray, tol: float) -> bool:
+    """No hand body enters the support or overlaps the object (beyond ``tol``)."""
+    obj = geo.transform(q_obj, scene.object.vertices_B)
+    for poly in kin.hand_polygons_W(scene, h):
+        if poly[:, 1].min() < -tol or geo.penetration_depth(poly, obj) > tol:
+            return False
+    return True
+
+
+def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray, tol: float) -> float | None:
+    """Angle at which finger ``finger`` (1 or 2), closing from its open limit with the rest of
+    the hand fixed, first touches the object; None if it never does within its limits."""
+    lo_lim, hi_lim = scene.fingers[finger - 1].limits
+    obj = geo.transform(q_obj, scene.object.vertices_B)
+
+    def depth(q: float) -> float:
+        hh = h.copy()
+        hh[2 + finger] = q
+        return geo.penetration_depth(kin.hand_polygons_W(scene, hh)[finger], obj)
+
+    # finger 1 closes as q1 increases, finger 2 as q2 decreases
+    grid = np.linspace(lo_lim, hi_lim, 91) if finger == 1 else np.linspace(hi_lim, lo_lim, 91)
+    if depth(grid[0]) > 0:
+        return None
+    for a, b in itertools.pairwise(grid):
+        if depth(b) > 0:
+            for _ in range(80):
+                m = 0.5 * (a + b)
+                if depth(m) > 0:
+                    b = m
+                else:
+                    a = m
+                if abs(b - a) < 1e-14:
+                    break
+            return a if depth(a) >= -tol else None
+    return None
+
+
+def tipping_placement(sim: Simulator, palm_angles=None, n_q: int = 24) -> tuple[State, str] | None:
+    """Pre-liftoff search for the paper's Fig. 4 placement.
+
+    For each tippability region (right: finger 2's tip at the right support contact, finger 1
+    in the right region; left: the mirror), each palm angle and each angle of the holding
+    finger, the holding fingertip is put on the support contact, the other finger closes until
+    it touches, and the placement is kept if that contact lies in the region, the hand is
+    clear of the support and the object, and the joints are within limits. Among the valid
+    placements the one whose contact has the largest moment arm about the support contact
+    (the easiest to tip) is returned, with the side; None if there is none.
+    """
+    scene = sim.scene
+    q_obj = scene.object.start_pose.copy()
+    left, right = tippability_regions(scene)
+    tol = sim.tol
+    angles = np.linspace(-0.6, 0.6, 7) if palm_angles is None else palm_angles
+    best = None
+    for side, region in (("right", right), ("left", left)):
+        if region.is_empty:
+            continue
+        hold = 2 if side == "right" else 1  # finger whose tip sits on the support contact
+        move = 3 - hold
+        p_C = region.contact_W
+        lim = scene.fingers[hold - 1].limits
+        for th in angles:
+            for q_hold in np.linspace(lim[0], lim[1], n_q)[1:-1]:
+                u = np.array([math.cos(th + q_hold), math.sin(th + q_hold)])
+                J = p_C - scene.fingers[hold - 1].length * u
+                jx = scene.palm.width / 2 if hold == 2 else -scene.palm.width / 2
+                o = J - geo.rot(th) @ np.array([jx, 0.0])
+                h = np.array([o[0], o[1], th, -math.pi / 2, -math.pi / 2])
+                h[2 + hold] = q_hold
+                h[2 + move] = scene.fingers[move - 1].limits[0 if move == 1 else 1]
+                q_move = _first_touch(scene, h, move, q_obj, tol)
+                if q_move is None:
+                    continue
+                h[2 + move] = q_move
+                if not _hand_clear(scene, h, q_obj, 10 * tol):
+                    continue
+                try:
+                    state = sim.settle(q_obj, h)
+                except (SimulationError, SolverError):
+                    continue
+                if np.abs(state.object_pose - q_obj).max() > 1e-9:
+                    continue
+                finger = f"finger{move}"
+                touch = [c for c in state.contacts if c.body == finger]
+                if not touch or not all(region.contains(c.point, c.normal, 1e-7) for c in touch):
+                    continue
+                arm = max(abs(float(geo.cross2(c.point - p_C, c.normal))) for c in touch)
+                if best is None or arm > best[0]:
+                    best = (arm, state, side)
+    return None if best is None else (best[1], best[2])
+
+
+def centred_placement(sim: Simulator, margin: float = 0.01, dq: float = 0.01) -> State:
+    """The paper's fallback pre-liftoff placement, returned after the fingers touch.
+
+    The palm is centred over the object, parallel to the support, just high enough (``margin``
+    times the palm width) that the longer finger cannot touch the support, and at least
+    ``margin`` above the object; the fingers hang straight down and close at equal rates
+    (``dq`` per move) until each touches the object or the fingers jam.
+    """
+    scene = sim.scene
+    q_obj = scene.object.start_pose.copy()
+    top = float(scene.object.vertices_W0[:, 1].max())
+    reach = max(f.length for f in scene.fingers)
+    y_p = max(reach, top) + margin * scene.palm.width
+    h = np.array([q_obj[0], y_p, 0.0, -math.pi / 2, -math.pi / 2])
+    h[3:] = np.clip(h[3:], scene.joint_limits[:, 0], scene.joint_limits[:, 1])
+    state = sim.settle(q_obj, h)
+    return close_until_touch(sim, state, dq)
+
+
+def close_until_touch(
+    sim: Simulator, state: State, dq: float = 0.01, max_moves: int = 400
+) -> State:
+    """Close each finger that does not touch the object yet, in moves of ``dq``, until both
+    touch it, a finger reaches its limit, or the hand jams."""
+    lim = sim.scene.joint_limits
+    for _ in range(max_moves):
+        touching = _touching_bodies(state)
+        dq1 = 0.0 if "finger1" in touching else dq
+        dq2 = 0.0 if "finger2" in touching else -dq
+        if dq1 == 0.0 and dq2 == 0.0:
+            break
+        target = state.finger_angles + np.array([dq1, dq2])
+        if np.all(np.clip(target, lim[:, 0], lim[:, 1]) == state.finger_angles):
+            break
+        state = sim.move_hand(state, fingers=target)
+        if state.jammed:
+            break
+    return state
+
+
+def squeeze_tips(sim: Simulator, state: State, dq: float = 1e-3) -> tuple[bool, list[int]]:
+    """Whether squeezing the fingers at equal rates moves the object (the velocity LP, eqs.
+    19-21, has a solution with nonzero velocity), and which support contacts break at the
+    onset (zero dual value in the force LP), as indices into ``state.contacts``."""
+    p, n, b = state.contact_arrays()
+    dh = np.array([0.0, 0.0, 0.0, dq, -dq])
+    V = mech.V_ob(p, n, state.object_pose[:2])
+    xi = mech.xi(sim.scene, state.hand, dh, b, p, n)
+    res = mech.motion_lp(V, xi, sim.scene.object_weight)
+    if res.status != "optimal":
+        return False, []
+    moves = np.abs(res.velocity).max() > 1e-9 * sim.size
+    weight = sim.scene.object_weight
+    broken = [
+        i
+        for i, (c, f) in enumerate(zip(state.contacts, res.forces, strict=True))
+        if c.body == "support" and f <= 1e-9 * weight
+    ]
+    return bool(moves), broken
+
+
+def palm_distance(state: State) -> float:
+    """Height of the object's centre of mass below the palmar edge, in the palm frame."""
+    r = geo.rot(state.hand[2]).T @ (state.object_pose[:2] - state.hand[:2])
+    return float(-r[1])
+
+
+def fingertip_distance(state: State) -> float:
+    tips = kin.fingertips_W(state.scene, state.hand)
+    return float(np.linalg.norm(tips[0] - tips[1]))
+
+
+def lift(
+    sim: Simulator,
+    state: State,
+    plan: Plan,
+    dq: float = 0.01,
+    palm_step: float = 0.005,
+    max_steps: int = 600,
+) -> State:
+    """Lifting phase: greedy increments toward the palm until form closure.
+
+    Candidate increments, in order of preference: both fingers closing at equal rates (the
+    paper's experiment), one finger leading, one finger alone, the palm moving toward the
+    object, and both fingers turning the same way (to roll the object past a fold where the
+    squeeze jams). The first candidate that moves the hand without dropping the object, (with the
+    object off the support) keeps the fingertips
+    closer than the object's width, and that brings the object closer to the palm is taken;
+    if none brings it closer, the first that moves at all. Ends at form closure, when nothing
+    moves, or after ``max_steps``.
+    """
+    width = object_width(sim.scene)
+    candidates = [
+        (dq, -dq, 0.0),
+        (dq, -dq / 2, 0.0),
+        (dq / 2, -dq, 0.0),
+        (dq, 0.0, 0.0),
+        (0.0, -dq, 0.0),
+        (0.0, 0.0, palm_step), (dq, dq, 0.0), (-dq, -dq, 0.0),
+    ]
+    lifted = False
+    for _ in range(max_steps):
+        if mech.is_form_closure(state):
+            plan.status, plan.message = "form_closure", "form closure reached"
+            return state
+        d0 = palm_distance(state)
+        fallback = None
+        for dq1, dq2, down in candidates:
+            th = state.hand[2]  # "down" moves the palm along its -y axis, toward the object
+            palm = state.hand[:3] + down * np.array([math.sin(th), -math.cos(th), 0.0])
+            nxt = sim.move_hand(
+                state, palm=palm, fingers=state.finger_angles + np.array([dq1, dq2])
+            )
+            moved = np.abs(nxt.hand - state.hand).max() > 1e-12
+            dropped = lifted and not _off_support(nxt) and _off_support(state)
+            if not moved or dropped:
+                continue
+            if (
+                _off_support(nxt)
+                and fingertip_distance(nxt) >= width
+                and not mech.is_form_closure(nxt)
+            ):
+                continue
+            if palm_distance(nxt) < d0 - 1e-9 or mech.is_form_closure(nxt):
+                break
+            fallback = fallback or nxt
+        else:
+            if fallback is None:
+                plan.status = "stuck"
+                plan.message = "no lifting increment moves the hand without dropping the object"
+                return state
+            nxt = fallback
+        state = nxt
+        lifted = lifted or _off_support(state)
+        plan.steps.append(PlanStep("lifting", state, _grip_if_closed(state), _event_note(state)))
+    plan.status, plan.message = "stuck", f"no form closure after {max_steps} lifting steps"
+    return state
+
+
+def _event_note(state: State) -> str:
+    kinds = [e.kind for e in state.events if e.kind not in ("joint_limit",)]
+    return ", ".join(dict.fromkeys(kinds))
+
+
+def _grip_if_closed(state: State) -> float:
+    return mech.grip_objective(state) if mech.is_form_closure(state) else math.nan
+
+
+# ---------------------------------------------------------------------- grip adjustment
+class FourContactBranch:
+    """The one-parameter family of configurations keeping four contacts (eq. 28).
+
+    With the palm fixed and ``q1`` given, the unknowns ``z = (x, y, theta, q2)`` solve the four
+    contacts' gap equations by Newton's method. The Jacobian is exact: the object columns are
+    ``V_ob``'s rows, and ``d gap / d q2 = -(r x n)`` for a contact on finger 2 (``r`` from its
+    joint), zero otherwise.
+    """
+
+    def __init__(self, sim: Simulator, keys: list, hand: np.ndarray) -> None:
+        self.sim, self.keys, self.hand = sim, list(keys), hand.copy()
+
+    def solve(self, q1: float, z0: np.ndarray) -> np.ndarray | None:
+        sim, z = self.sim, z0.copy()
+        scale = np.array([1.0, 1.0, 1.0 / sim.rho, 1.0 / sim.size])
+        for _ in range(40):
+            h = self.config(q1, z)
+            pl = ct.Placement(sim.scene, z[:3], h)
+            F = np.empty(4)
+            J = np.zeros((4, 4))
+            joint2 = kin.body_poses_W(sim.scene, h)[2, :2]
+            for i, key in enumerate(self.keys):
+                p, n, F[i], _, _ = pl.evaluate(key)
+                J[i, :3] = mech.V_ob(p[None], n[None], z[:2])[0]
+                if key[0] == geo.FINGER2:
+                    J[i, 3] = -float(geo.cross2(p - joint2, n))
+            if np.abs(F).max() <= sim.newton_tol:
+                return z
+            try:
+                dz = np.linalg.solve(J * scale, -F) * scale
+            except np.linalg.LinAlgError:
+                return None
+            z = z + dz
+            if not np.all(np.isfinite(z)) or np.abs(dz).max() > 1.0:
+                return None
+        return None
+
+    def config(self, q1: float, z: np.ndarray) -> np.ndarray:
+        h = self.hand.copy()
+        h[3], h[4] = q1, z[3]
+        return h
+
+    def state(self, q1: float, z: np.ndarray) -> State | None:
+        """The state at ``(q1, z)`` if it is valid: no penetration beyond the four contacts,
+        every contact on its edge, joints within limits, form closure; else None."""
+        sim = self.sim
+        h = self.config(q1, z)
+        lim = sim.scene.joint_limits
+        if np.any(h[3:] < lim[:, 0] - 1e-12) or np.any(h[3:] > lim[:, 1] + 1e-12):
+            return None
+        if min(p[:, 1].min() for p in kin.hand_polygons_W(sim.scene, h)) < -sim.tol:
+            return None
+        pl = ct.Placement(sim.scene, z[:3], h)
+        gap, _ = ct.min_gap(pl, {ct.vertex_of(k) for k in self.keys})
+        if gap < -sim.tol:
+            return None
+        contacts = []
+        for key in self.keys:
+            p, n, g, t, L = pl.evaluate(key)
+            if np.isfinite(L) and (t < -sim.tol / L or t > 1 + sim.tol / L):
+                return None
+            contacts.append(
+                ct.Contact(
+                    geo.BODY_NAMES[key[0]],
+                    ct.KIND_NAMES[key[1]],
+                    p.copy(),
+                    n.copy(),
+                    0.0,
+                    key[2],
+                    key[3],
+                    float(g),
+                )
+            )
+        st = State(sim.scene, z[:3].copy(), h, tuple(contacts))
+        return st if mech.is_form_closure(st) else None
+
+    def grip(self, q1: float, z0: np.ndarray) -> tuple[float, np.ndarray | None]:
+        z = self.solve(q1, z0)
+        if z is None:
+            return math.inf, None
+        st = self.state(q1, z)
+        return (mech.grip_objective(st), z) if st is not None else (math.inf, None)
+
+
+def _branches(sim: Simulator, state: State) -> list[FourContactBranch]:
+    """Four-contact subsets of the state's contacts that keep form closure."""
+    keys = [c.key for c in state.contacts]
+    out = []
+    for sub in itertools.combinations(range(len(keys)), 4):
+        trial = State(
+            state.scene, state.object_pose, state.hand, tuple(state.contacts[i] for i in sub)
+        )
+        if mech.is_form_closure(trial):
+            out.append(FourContactBranch(sim, [keys[i] for i in sub], state.hand))
+    return out
+
+
+def adjust_grip(
+    sim: Simulator,
+    state: State,
+    plan: Plan,
+    eps: float = 1e-4,
+    alpha: float = 0.02,
+    max_dq: float = 0.02,
+    max_steps: int = 200,
+) -> State:
+    """Grip-adjustment phase: descend ``y*`` along the four-contact branches (eq. 37).
+
+    Each step takes ``q1 <- q1 - alpha dy*/dq1`` (forward difference with ``eps``), clipped to
+    ``max_dq`` and halved until ``y*`` decreases. At a five-contact configuration the branches
+    that keep form closure are evaluated in both directions and the best one continues. Stops
+    when no branch and direction lowers ``y*``.
+    """
+    y = mech.grip_objective(state)
+    z = np.array([*state.object_pose, state.hand[4]])
+    q1 = float(state.hand[3])
+    for _ in range(max_steps):
+        best = None
+        for br in _branches(sim, state):
+            y_eps, _ = br.grip(q1 + eps, z)
+            y_meps, _ = br.grip(q1 - eps, z)
+            # the branch is usable only in directions where it stays valid
+            for sign, y_nb in ((1.0, y_eps), (-1.0, y_meps)):
+                if not math.isfinite(y_nb) or y_nb >= y:
+                    continue
+                grad = (y_nb - y) / eps * sign
+                step = float(np.clip(-alpha * grad, -max_dq, max_dq))
+                if step * sign <= 0:
+                    step = sign * eps
+                while abs(step) >= eps:
+                    y_new, z_new = br.grip(q1 + step, z)
+                    if z_new is not None and y_new < y:
+                        if best is None or y_new < best[0]:
+                            best = (y_new, q1 + step, z_new, br)
+                        break
+                    step *= 0.5
+        if best is None:
+            plan.message = "form closure reached; y* at a local minimum"
+            return state
+        y, q1, z, br = best
+        state = sim.settle(z[:3], br.config(q1, z))
+        plan.steps.append(PlanStep("grip adjustment", state, mech.grip_objective(state), ""))
+        y = plan.steps[-1].grip
+    plan.message = f"grip adjustment stopped after {max_steps} steps"
+    return state
+
+
+def grip_curves(sim: Simulator, state: State, half_width: float = 0.15, n: int = 61) -> list[dict]:
+    """``y*`` against ``q1`` along every four-contact branch through ``state`` (like Fig. 14).
+
+    Returns one dict per four-contact subset of the state's contacts: the contacts kept, the
+    dropped ones, whether the subset is in form closure, and the ``(q1, y*)`` samples where the
+    branch is valid (traced by continuation from the state in both directions).
+    """
+    out = []
+    keys = [c.key for c in state.contacts]
+    q1_0 = float(state.hand[3])
+    for sub in itertools.combinations(range(len(keys)), min(4, len(keys))):
+        br = FourContactBranch(sim, [keys[i] for i in sub], state.hand)
+        trial = State(
+            state.scene, state.object_pose, state.hand, tuple(state.contacts[i] for i in sub)
+        )
+        closed = mech.is_form_closure(trial)
+        pts = []
+        for sign in (1.0, -1.0):
+            z = np.array([*state.object_pose, state.hand[4]])
+            for q1 in q1_0 + sign * np.linspace(0.0, half_width, n // 2 + 1):
+                y, z_new = br.grip(q1, z)
+                if z_new is None:
+                    break
+                z = z_new
+                pts.append((float(q1), float(y)))
+        pts = sorted(set(pts))
+        out.append(
+            {
+                "kept": sub,
+                "dropped": tuple(i for i in range(len(keys)) if i not in sub),
+                "form_closure": closed,
+                "q1": [p[0] for p in pts],
+                "grip": [p[1] for p in pts],
+            }
+        )
+    return out
+
+
+# ---------------------------------------------------------------------- the whole plan
+def plan_grasp(scene, sim: Simulator | None = None, dq: float = 0.01, adjust: bool = True) -> Plan:
+    """Run the three phases on a scene (a Scene, bundled name, path or dict)."""
+    t0 = time.process_time()
+    sim = sim or Simulator(scene)
+    plan = Plan()
+    try:
+        _plan(sim, plan, dq, adjust)
+    except (SimulationError, SolverError) as exc:
+        plan.status, plan.message = "error", f"simulation failed: {exc}"
+    plan.cpu_time = time.process_time() - t0
+    return plan
+
+
+def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool) -> None:
+    left, right = tippability_regions(sim.scene)
+    if left.is_empty and right.is_empty:
+        plan.status = "not_tippable"
+        plan.message = (
+            "both tippability regions are empty: the object cannot be lifted without friction"
+        )
+        return
+    found = tipping_placement(sim)
+    if found is not None:
+        state, side = found
+        plan.placement = f"tippability ({side} region)"
+    else:
+        state = centred_placement(sim)
+        plan.placement = "centred"
+        tips, _ = squeeze_tips(sim, state)
+        if not tips:
+            plan.steps.append(PlanStep("pre-liftoff", state, math.nan, "not tippable"))
+            plan.status = "not_tippable"
+            plan.message = (
+                "no tipping placement: squeezing the centred hand does not move the object"
+            )
+            return
+    plan.steps.append(PlanStep("pre-liftoff", state, _grip_if_closed(state), plan.placement))
+    state = lift(sim, state, plan, dq)
+    if plan.status != "form_closure" or not adjust:
+        return
+    adjust_grip(sim, state, plan)
