@@ -46,9 +46,10 @@ def solve(
     if A_eq is not None and len(A_eq) == 0:
         A_eq = b_eq = None
     res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
-    if res.status == 4:
-        # HiGHS' presolve may only say "infeasible or unbounded": decide without presolve,
-        # and failing that by the feasibility problem (zero objective).
+    if res.status in (2, 4):
+        # HiGHS' presolve may only say "infeasible or unbounded", or (rarely, on tiny
+        # degenerate problems) call a feasible one infeasible: decide without presolve, and
+        # failing that by the feasibility problem (zero objective).
         res = linprog(
             c,
             A_ub=A_ub,

@@ -17,9 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from grasp_env import fastlp, lp
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
-from grasp_env import lp
+from grasp_env.errors import SolverError
 from grasp_env.scene import Scene
 from grasp_env.state import State
 
@@ -138,13 +139,21 @@ def force_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
     return lp.solve(-xi_, A_eq=V.T, b_eq=b, bounds=(0, None))
 
 
-def motion_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> MotionLP:
+def motion_lp(V: np.ndarray, xi_: np.ndarray, weight: float, solver: str = "fast") -> MotionLP:
     """Object motion for a hand velocity: both formulations, checked against each other.
 
     The velocity LP gives the object twist and its dual values the contact forces, which solve
     the force LP (their optima agree by duality, eq. 19 = eq. 22; the tests check it with
-    :func:`force_lp`).
+    :func:`force_lp`). ``solver="fast"`` uses the exact basis enumeration of
+    :mod:`grasp_env.fastlp` (falling back to HiGHS when it cannot decide); ``"highs"`` is the
+    reference path.
     """
+    if solver == "fast":
+        try:
+            res = fastlp.solve_velocity_lp(V, xi_, np.array([0.0, weight, 0.0]))
+            return MotionLP(res.status, res.v, res.lam, res.value)
+        except SolverError:
+            pass  # undecided in double precision: the reference path decides
     vel = velocity_lp(V, xi_, weight)
     if vel.status != "optimal":
         return MotionLP(vel.status, None, None, vel.value)

@@ -67,6 +67,8 @@ class Simulator:
         fall_step: largest object displacement of one step of a fall, relative to the object's
             size (default 0.02).
         max_iterations: safety cap on increments per move (default 10000).
+        lp_solver: ``"fast"`` (exact basis enumeration, :mod:`grasp_env.fastlp`) or ``"highs"``
+            (the reference path through scipy's HiGHS) for the motion LP.
     """
 
     def __init__(
@@ -76,8 +78,12 @@ class Simulator:
         max_step: float = 0.25,
         fall_step: float = 0.02,
         max_iterations: int = 10000,
+        lp_solver: str = "fast",
     ) -> None:
         self.scene = load_scene(scene)
+        if lp_solver not in ("fast", "highs"):
+            raise ValueError(f"lp_solver must be 'fast' or 'highs', got {lp_solver!r}")
+        self.lp_solver = lp_solver
         if not (isinstance(contact_tol, float | int) and 0 < contact_tol < 1e-2):
             raise ValueError(f"contact_tol must be in (0, 1e-2), got {contact_tol!r}")
         if not (isinstance(max_step, float | int) and 0 < max_step <= 1):
@@ -273,7 +279,7 @@ class Simulator:
         p, n, bodies = _arrays(pl, keys)
         V = mech.V_ob(p, n, pl.com_W)
         xi = mech.xi(self.scene, h, dh, bodies, p, n)
-        res = mech.motion_lp(V, xi, self.weight)
+        res = mech.motion_lp(V, xi, self.weight, self.lp_solver)
         if res.status == "infeasible":
             return "jam"
         if res.status == "unbounded":
