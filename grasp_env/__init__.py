@@ -6,6 +6,7 @@ functions (:func:`is_form_closure`, :func:`is_force_closure`, :func:`grip_object
 ``FrictionlessGrasp-v0``.
 """
 
+from grasp_env import envs as _envs  # noqa: F401  (registers FrictionlessGrasp-v0)
 from grasp_env.contacts import Contact
 from grasp_env.errors import SceneError, SolverError
 from grasp_env.mechanics import (

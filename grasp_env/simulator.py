@@ -169,7 +169,7 @@ class Simulator:
         for a, b in itertools.pairwise(grid):
             if lowest(b) < -self.tol:
                 lo, hi = a, b
-                while hi - lo > 1e-15 and lowest(hi) < -self.tol:
+                while hi - lo > 1e-16 and lowest(lo) > self.tol:  # stop touching, not above
                     mid = 0.5 * (lo + hi)
                     if lowest(mid) < 0.0:
                         hi = mid
@@ -199,6 +199,10 @@ class Simulator:
                 plan = self._plan(pl, keys, h, dh, allow_fall=not stuck_fall)
             stuck_fall = False
             if plan == "jam":
+                q_fallen = self._fall_if_unheld(q, h, s, events)
+                if q_fallen is not None:
+                    q = q_fallen
+                    continue
                 events.append(Event("jam", s, tuple(keys)))
                 return q, s, True
             if plan == "fall":
@@ -240,7 +244,12 @@ class Simulator:
                         continue
                 # Nothing consistent lies just ahead: the active contacts' equations fold
                 # (their normals turn concurrent and the forces needed grow without bound) or
-                # no contact can be released. The hand cannot move on: a jam.
+                # no contact can be released. The hand cannot move on: a jam -- unless the
+                # contacts left cannot hold the object, which then falls first.
+                q_fallen = self._fall_if_unheld(q, h0 + s * dh, s, events)
+                if q_fallen is not None:
+                    q, banned = q_fallen, set()
+                    continue
                 events.append(Event("jam", s, tuple(E)))
                 return q, s, True
             events.append(Event(event.kind, s_star, event.contacts))
@@ -303,6 +312,7 @@ class Simulator:
         q = q0.copy()
         if not E:
             return q
+        last = np.inf
         for _ in range(30):
             pl = ct.Placement(self.scene, q, h)
             F = np.empty(len(E))
@@ -310,10 +320,18 @@ class Simulator:
             N = np.empty((len(E), 2))
             for i, key in enumerate(E):
                 P[i], N[i], F[i], _, _ = pl.evaluate(key)
-            if np.abs(F).max() <= self.newton_tol:
+            res = np.abs(F).max()
+            if res <= self.newton_tol:
                 return q
+            if len(E) > 3 and res <= 0.5 * self.tol and res > 0.5 * last:
+                # stalled within tolerance: an over-determined set (more than three contacts)
+                # consistent only to the contacts' own tolerance
+                return q
+            last = res
             J = mech.V_ob(P, N, q[:2]) * self._scale
             du, *_ = np.linalg.lstsq(J, -F, rcond=1e-12)
+            if np.abs(du).max() > self.size:
+                return None  # a near-singular step far outside Newton's basin
             q = q + du * self._scale
             if not np.all(np.isfinite(q)):
                 return None
@@ -440,6 +458,18 @@ class Simulator:
             return q
         return self._fall(q, h, s, events)
 
+    def _fall_if_unheld(self, q, h, s, events) -> np.ndarray | None:
+        """Fall to rest when the touching contacts cannot hold the object; the new pose, or
+        None when they hold it (or no way down exists)."""
+        pl = ct.Placement(self.scene, q, h)
+        if self._held(pl, ct.detect(pl, self.tol)):
+            return None
+        q_fallen = self._fall(q, h, s, events)
+        if q_fallen is q:
+            del events[-2:]
+            return None
+        return q_fallen
+
     def _held(self, pl: ct.Placement, keys: list) -> bool:
         if not keys:
             return False
@@ -467,10 +497,15 @@ class Simulator:
             best = None
             for choice in choices:
                 a, E = self._descent(pl, choice)
-                if np.linalg.norm(a) < 1e-12:
-                    continue
+                if np.linalg.norm(a) < 1e-9:
+                    continue  # gravity is balanced to first order by this choice
+                # backtracking: near a stable rest (a cradle) a full step overshoots
                 d = a * self._scale / np.linalg.norm(a) * self.fall_step
-                q_new = self._fall_step(q, h, E, d)
+                for _ in range(50):
+                    q_new = self._fall_step(q, h, E, d)
+                    if q_new[1] < q[1] - 1e-12 * self.size:
+                        break
+                    d = 0.5 * d
                 if best is None or q_new[1] < best[1]:
                     best = q_new
             if best is None or best[1] > q[1] - 1e-9 * self.size:
@@ -569,7 +604,9 @@ class Simulator:
             np.ones(len(keys)), A_eq=V.T, b_eq=mech.gravity_wrench(self.scene), bounds=(0, None)
         )
         if res.status != "optimal":
-            return np.zeros(len(keys))
+            # held only to within the fall's tolerance: the closest non-negative forces
+            lam, _ = nnls(V.T, mech.gravity_wrench(self.scene))
+            return lam
         return np.maximum(res.x, 0.0)
 
 

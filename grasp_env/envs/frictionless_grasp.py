@@ -1,0 +1,811 @@
+"""``FrictionlessGrasp-v0``: pick a convex polygon up off a flat support without friction."""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from grasp_env import geometry as geo
+from grasp_env import kinematics as kin
+from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_shape_scene
+from grasp_env.errors import SolverError
+from grasp_env.mechanics import grip_objective, is_form_closure
+from grasp_env.scene import Scene, load_scene
+from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.state import State
+
+# Workspace and observation ranges, in palm widths (lengths) and radians, about the object's
+# scene position ``x0`` (x) and the support (y).
+PALM_X_RANGE = 2.0  #: palm x stays within x0 +- this
+PALM_Y_MAX = 3.0  #: palm y stays within [0, this]
+PALM_THETA_MAX = 0.5 * math.pi  #: palm angle stays within +- this
+REACH = 2.0  #: the object is out of reach when its centre is this far from the palm (palm frame)
+OBJECT_X_RANGE = PALM_X_RANGE + REACH
+OBJECT_Y_MAX = PALM_Y_MAX + REACH
+VERTEX_RANGE = 2.0  #: object vertex coordinates (object frame)
+COUNT_MAX = 8.0  #: contacts per body
+FORCE_MAX = 10.0  #: total contact force on a body, in object weights
+GRIP_MAX = 10.0  #: y* in object weights (``y_max``)
+HEIGHT_MIN, HEIGHT_MAX = -1.0, OBJECT_Y_MAX  #: object centre height above its start
+
+#: Finger step of the pre-liftoff closing motion (rad); the first touch is then located
+#: exactly from the simulator's events.
+PRELIFTOFF_STEP = 0.1
+#: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
+#: (rad), finger angles (rad).
+RANDOM_PALM_XY, RANDOM_PALM_THETA, RANDOM_FINGER = 0.02, 0.05, 0.1
+RANDOM_START_TRIES = 50
+
+BODIES = geo.BODY_NAMES
+_STARTS = ("scene", "preliftoff", "random")
+_OPTION_KEYS = ("scene", "palm", "fingers")
+_REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
+
+
+class FrictionlessGraspEnv(gym.Env):
+    r"""Frictionless enveloping grasping in the plane (Trinkle, Abel & Paul, IJRR 1988).
+
+    ## Description
+
+    A planar hand, a flat palm with two hinged single-link fingers under exact position
+    control, has to pick a convex polygon up off a flat support, with gravity and **without
+    friction**. The object's motion is quasi-static: for every hand motion it moves so as to
+    lower its potential energy as far as the contacts allow (the paper's eqs. 19-24, solved
+    by :class:`grasp_env.Simulator`). Without friction a grasp is secure only in **form
+    closure**: contacts (fingers, palm) that leave the object no motion at all. The paper's
+    strategy is to squeeze the object with the fingers until it slides and tips up off the
+    support into the hand (pre-liftoff and lifting), then to adjust the grip. The task is to
+    reach form closure with the object off the support, and to hold it with small contact
+    forces (a low grip objective ``y*`` of eqs. 31-36).
+
+    Lengths are in palm widths ``w``, forces in object weights ``W``, angles in radians. The
+    support is the line ``y = 0``; ``x0`` is the object's x at its scene placement.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)`` (``palm_control=False``, the paper's set-up: the palm stays
+    where the scene puts it) or ``Box(-1, 1, (5,), float32)`` (``palm_control=True``):
+
+    | index | action | scaled by |
+    | --- | --- | --- |
+    | 0 | close finger 1 (``q1 += a0 * max_finger_step``; > 0 closes) | ``max_finger_step`` |
+    | 1 | close finger 2 (``q2 -= a1 * max_finger_step``; > 0 closes) | ``max_finger_step`` |
+    | 2 | palm ``dx`` | ``max_palm_step[0] * w`` |
+    | 3 | palm ``dy`` | ``max_palm_step[1] * w`` |
+    | 4 | palm ``dtheta`` | ``max_palm_step[2]`` |
+
+    The target hand configuration is the current one plus the scaled action, reached by one
+    straight-line hand move of the simulator. Actions outside ``[-1, 1]`` are clipped (they act
+    like the bound); NaN or infinite actions raise ``ValueError``. Finger targets beyond the
+    joint limits are clipped there; palm targets are clipped into the workspace
+    ``|x_p - x0| <= 2 w``, ``0 <= y_p <= 3 w``, ``|theta_p| <= pi/2``. The hand stops short
+    when the object jams it or when it would enter the support.
+
+    ## Observation Space
+
+    ``Box(low, high, (24 + 3 N,), float32)`` with ``N = max_vertices`` (60 for the default
+    12). Every entry is clipped into its bounds.
+
+    | index | observation | min | max |
+    | --- | --- | --- | --- |
+    | 0 | palm x relative to x0 (``(x_p - x0) / w``) | -2 | 2 |
+    | 1 | palm y (``y_p / w``) | 0 | 3 |
+    | 2 | palm angle ``theta_p`` | -pi/2 | pi/2 |
+    | 3 | finger 1 angle ``q1`` | -pi | pi |
+    | 4 | finger 2 angle ``q2`` | -pi | pi |
+    | 5 | object centre x relative to x0 (world, ``/ w``) | -4 | 4 |
+    | 6 | object centre y (world, ``/ w``) | 0 | 5 |
+    | 7 | sin of the object angle (world) | -1 | 1 |
+    | 8 | cos of the object angle (world) | -1 | 1 |
+    | 9 | object centre x in the palm frame (``/ w``) | -2 | 2 |
+    | 10 | object centre y in the palm frame (``/ w``) | -2 | 2 |
+    | 11 | sin of the object angle in the palm frame | -1 | 1 |
+    | 12 | cos of the object angle in the palm frame | -1 | 1 |
+    | 13 .. 12+2N | object vertices ``(x, y) / w`` in the object frame, zero-padded | -2 | 2 |
+    | 13+2N .. 12+3N | vertex mask (1 for a real vertex, 0 for padding) | 0 | 1 |
+    | 13+3N + 2k | contact count on body k (support, palm, finger 1, finger 2) | 0 | 8 |
+    | 14+3N + 2k | total contact force on body k ``/ W`` | 0 | 10 |
+    | 21+3N | form closure (1) or not (0) | 0 | 1 |
+    | 22+3N | grip objective ``y* / W`` in form closure, else ``y_max`` = 10 | 0 | 10 |
+    | 23+3N | object centre height above its start (``/ w``) | -1 | 5 |
+
+    The contact forces are the simulator's: the least total force holding the object once the
+    hand stops (a position-controlled hand adds no preload).
+
+    ## Rewards
+
+    The reward is the sum of five terms, each reported in ``info`` as ``reward_<name>``:
+
+    * ``form_closure``: ``reward_form_closure_weight`` (10) once per episode, at the first
+      step in form closure with the object off the support (``info["is_success"]``).
+    * ``grip``: at every step in form closure with the object off the support,
+      ``reward_grip_weight * (1 - min(y* / W, y_max) / y_max)`` with ``y_max = 10``: up to
+      ``reward_grip_weight`` (0.1) for a grip needing little force. (Form closure with the
+      object still on the support is not a grasp and earns nothing.)
+    * ``lift``: potential-based shaping ``gamma * Phi(s') - Phi(s)`` with ``Phi =
+      reward_lift_weight * (object centre height above its start) / w`` (weight 1, ``gamma``
+      0.99); ``Phi = 0`` at a terminal state, so shaping leaves the optimal policy unchanged.
+    * ``drop``: ``-reward_drop_weight`` (10) on a drop.
+    * ``ctrl``: ``-reward_ctrl_weight * |a|^2`` on the clipped action (weight 0 by default).
+
+    ## Starting State
+
+    The object rests at its scene placement. The hand starts (``start`` kwarg)
+
+    * ``"scene"``: at the scene's hand configuration (the paper's set-up in ``fig13``);
+    * ``"preliftoff"``: palm centred over the object, parallel to the support, just high
+      enough that the longer finger cannot touch it, fingers closed at equal rates (by the
+      simulator, in steps of 0.1 rad, the first touch located exactly) until each finger
+      touches the object or the fingers jam;
+    * ``"random"``: the ``"preliftoff"`` configuration perturbed uniformly by up to
+      ``0.02 w`` in palm x and y, 0.05 rad in palm angle and 0.1 rad in each finger angle,
+      redrawn until the hand is clear of the object and the support.
+
+    With ``shape_randomizer`` the object is a new random convex polygon at every reset, in
+    the base scene's hand set-up. ``reset(options=...)`` accepts ``{"scene": ..., "palm":
+    (x, y, theta), "fingers": (q1, q2)}`` (world units): that scene (no randomizer) and that
+    hand configuration (missing parts from the scene); a hand overlapping the object or the
+    support is refused with ``ValueError``.
+
+    ## Episode End
+
+    * Termination: a **drop** (the object lands back on the support after having left it in
+      this episode, or its centre leaves the reach box ``|x|, |y| <= 2 w`` about the palm, in
+      the palm frame; ``info["dropped"]``), or a simulator failure (``info["sim_error"]``
+      holds the message; the state is left unchanged).
+    * Truncation: only by the ``TimeLimit`` wrapper, ``max_episode_steps=200`` by default.
+
+    ``info`` holds, at reset and every step: ``object_pose``, ``palm_pose``,
+    ``finger_angles`` (np arrays), ``contacts`` (list of dicts: body, kind, point, normal,
+    force), ``form_closure``, ``grip_force`` (``y*``, ``nan`` when not in form closure),
+    ``jammed``, ``hand_blocked``, ``dropped``, ``events`` (the simulator's event kinds),
+    ``is_success`` (form closure with the object off the support) and the reward terms
+    (zero at reset); with ``always_compute_grip=True`` also ``grip_objective`` (``y*`` of any
+    state, ``inf`` if infeasible).
+
+    ## Arguments
+
+    ```python
+    gymnasium.make("FrictionlessGrasp-v0", scene="fig13", palm_control=False, start="scene")
+    ```
+
+    * ``scene``: a bundled name, a YAML path, a dict in the scene schema, a ``Scene``, or a
+      list of them (one drawn uniformly at every reset). Default ``"fig13"``.
+    * ``shape_randomizer``: None, True (default ranges) or a dict of ranges
+      ``{"vertices": (3, 8), "size": (0.2, 0.45), "aspect": (1.0, 3.0), "mass": (0.05,
+      0.5)}`` (size: the polygon's diameter in palm widths; see
+      :func:`grasp_env.envs.shapes.random_convex_polygon`).
+    * ``palm_control`` (False), ``max_finger_step`` (0.05 rad), ``max_palm_step`` ((0.02,
+      0.02, 0.05): palm widths, palm widths, rad).
+    * ``start``: ``"scene"`` (default), ``"preliftoff"`` or ``"random"``.
+    * ``reward_form_closure_weight`` (10), ``reward_grip_weight`` (0.1),
+      ``reward_lift_weight`` (1), ``reward_drop_weight`` (10), ``reward_ctrl_weight`` (0),
+      ``gamma`` (0.99): see Rewards. Weights are finite and >= 0.
+    * ``contact_tol``: the simulator's contact tolerance, relative to the palm width (1e-9).
+    * ``max_vertices``: observation padding of the object's vertices (12).
+    * ``always_compute_grip``: also compute ``y*`` outside form closure (False: skipped).
+    * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
+      ``render_height`` (640, 480).
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
+
+    def __init__(
+        self,
+        scene: Any = "fig13",
+        *,
+        shape_randomizer: dict | bool | None = None,
+        palm_control: bool = False,
+        max_finger_step: float = 0.05,
+        max_palm_step: tuple[float, float, float] = (0.02, 0.02, 0.05),
+        start: str = "scene",
+        reward_form_closure_weight: float = 10.0,
+        reward_grip_weight: float = 0.1,
+        reward_lift_weight: float = 1.0,
+        reward_drop_weight: float = 10.0,
+        reward_ctrl_weight: float = 0.0,
+        gamma: float = 0.99,
+        contact_tol: float = 1e-9,
+        max_vertices: int = 12,
+        always_compute_grip: bool = False,
+        render_mode: str | None = None,
+        render_width: int = 640,
+        render_height: int = 480,
+    ) -> None:
+        self.palm_control = _flag(palm_control, "palm_control")
+        self.always_compute_grip = _flag(always_compute_grip, "always_compute_grip")
+        self.max_finger_step = _number(max_finger_step, "max_finger_step", 0.0, math.pi / 2)
+        self.max_palm_step = _numbers(max_palm_step, "max_palm_step", 3, 0.0, 1.0)
+        if not isinstance(start, str) or start not in _STARTS:
+            raise ValueError(f"start must be one of {list(_STARTS)}, got {start!r}")
+        self.start = start
+        self.reward_weights = {
+            name: _number(value, f"reward_{name}_weight", 0.0, math.inf, lo_open=False)
+            for name, value in zip(
+                _REWARD_TERMS,
+                (
+                    reward_form_closure_weight,
+                    reward_grip_weight,
+                    reward_lift_weight,
+                    reward_drop_weight,
+                    reward_ctrl_weight,
+                ),
+                strict=True,
+            )
+        }
+        self.gamma = _number(gamma, "gamma", 0.0, 1.0)
+        self.contact_tol = _number(contact_tol, "contact_tol", 0.0, 1e-2, hi_open=True)
+        if isinstance(max_vertices, bool) or not isinstance(max_vertices, int | np.integer):
+            raise TypeError(f"max_vertices must be an int, got {max_vertices!r}")
+        if max_vertices < 3:
+            raise ValueError(f"max_vertices must be >= 3, got {max_vertices!r}")
+        self.max_vertices = int(max_vertices)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be None or one of {self.metadata['render_modes']}, "
+                f"got {render_mode!r}"
+            )
+        self.render_mode = render_mode
+        for name, value in (("render_width", render_width), ("render_height", render_height)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 16:
+                raise ValueError(f"{name} must be an integer >= 16, got {value!r}")
+        self.render_size = (render_width, render_height)
+
+        specs = list(scene) if isinstance(scene, list | tuple) else [scene]
+        if not specs:
+            raise ValueError("scene must be a scene or a non-empty list of scenes, got []")
+        self.scenes = [self._load(spec, "scene") for spec in specs]
+        self.shape_ranges = _shape_ranges(shape_randomizer, self.max_vertices)
+        if self.shape_ranges is not None:
+            for base in self.scenes:  # fail now, not at a reset, if no shape fits a hand
+                random_shape_scene(np.random.default_rng(0), base, self.shape_ranges)
+
+        self._sims: dict[int, Simulator] = {}
+        self._preliftoff_cache: dict[int, State] = {}
+        self.action_space = spaces.Box(-1.0, 1.0, (5 if self.palm_control else 2,), np.float32)
+        low, high = _observation_bounds(self.max_vertices)
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self._obs_low, self._obs_high = low.astype(float), high.astype(float)
+
+        self._renderer = None
+        self._sim: Simulator | None = None
+        self._state: State | None = None
+        self._analysis: dict[str, Any] = {}
+        self._steps = 0
+
+    # ------------------------------------------------------------------ validation
+    def _load(self, spec: Any, name: str) -> Scene:
+        if not isinstance(spec, str | os.PathLike | dict | Scene):
+            raise TypeError(
+                f"{name} must be a bundled name, a path, a dict or a Scene, got {spec!r}"
+            )
+        try:
+            scene = load_scene(spec)
+        except ValueError as exc:
+            raise ValueError(f"{name} {_short(spec)}: {exc}") from None
+        n = len(scene.object.vertices_B)
+        if n > self.max_vertices:
+            raise ValueError(
+                f"{name} {_short(spec)}: the object has {n} vertices, more than "
+                f"max_vertices={self.max_vertices}"
+            )
+        w = scene.palm.width
+        x_p, y_p, th_p = scene.palm.pose
+        x0 = scene.object.start_pose[0]
+        if abs(x_p - x0) > PALM_X_RANGE * w or not 0 <= y_p <= PALM_Y_MAX * w:
+            raise ValueError(
+                f"{name} {_short(spec)}: palm.pose {scene.palm.pose.tolist()} is outside the "
+                f"workspace |x - x0| <= {PALM_X_RANGE} w, 0 <= y <= {PALM_Y_MAX} w"
+            )
+        if abs(th_p) > PALM_THETA_MAX:
+            raise ValueError(f"{name} {_short(spec)}: palm angle {th_p!r} is outside +-pi/2")
+        if self.start != "scene":
+            problem = _placement_problem(scene, scene.object.start_pose, hand_setup(scene))
+            if problem:
+                raise ValueError(
+                    f"{name} {_short(spec)}: start={self.start!r} needs the pre-liftoff hand "
+                    f"set-up, but there {problem}"
+                )
+        return scene
+
+    def _check_options(self, options: Any) -> dict[str, Any]:
+        if options is None:
+            return {}
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict or None, got {options!r}")
+        unknown = sorted(set(options) - set(_OPTION_KEYS), key=str)
+        if unknown:
+            raise ValueError(f"options: unknown key(s) {unknown}; allowed: {list(_OPTION_KEYS)}")
+        out: dict[str, Any] = {}
+        if options.get("scene") is not None:
+            out["scene"] = self._load(options["scene"], "options['scene']")
+        for key, size in (("palm", 3), ("fingers", 2)):
+            if options.get(key) is not None:
+                out[key] = _vector(options[key], f"options[{key!r}]", size)
+        return out
+
+    def _check_hand(self, scene: Scene, opts: dict[str, Any]) -> np.ndarray:
+        h = scene.initial_hand.copy()
+        if "palm" in opts:
+            x, y, th = opts["palm"]
+            w, x0 = scene.palm.width, scene.object.start_pose[0]
+            if abs(x - x0) > PALM_X_RANGE * w or not 0 <= y <= PALM_Y_MAX * w:
+                raise ValueError(
+                    f"options['palm'] {opts['palm'].tolist()} is outside the workspace "
+                    f"|x - {x0:.4g}| <= {PALM_X_RANGE * w:.4g}, 0 <= y <= {PALM_Y_MAX * w:.4g}"
+                )
+            if abs(th) > PALM_THETA_MAX:
+                raise ValueError(f"options['palm'] angle {th!r} is outside [-pi/2, pi/2]")
+            h[:3] = opts["palm"]
+        if "fingers" in opts:
+            lim = scene.joint_limits
+            q = opts["fingers"]
+            if np.any(q < lim[:, 0]) or np.any(q > lim[:, 1]):
+                raise ValueError(
+                    f"options['fingers'] {q.tolist()} is outside the joint limits {lim.tolist()}"
+                )
+            h[3:] = q
+        problem = _placement_problem(scene, scene.object.start_pose, h)
+        if problem:
+            raise ValueError(
+                f"options palm={h[:3].tolist()}, fingers={h[3:].tolist()} refused: {problem}"
+            )
+        return h
+
+    def _check_action(self, action: Any) -> np.ndarray:
+        try:
+            a = np.asarray(action, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be an array of numbers, got {action!r}") from None
+        if a.shape != self.action_space.shape:
+            raise ValueError(
+                f"action must have shape {self.action_space.shape}, got {action!r} "
+                f"of shape {a.shape}"
+            )
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {action!r}")
+        return np.clip(a, -1.0, 1.0)
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        opts = self._check_options(options)
+        super().reset(seed=seed)
+        if "scene" in opts:
+            scene = opts["scene"]
+            sim, key = Simulator(scene, contact_tol=self.contact_tol), None
+        else:
+            idx = int(self.np_random.integers(len(self.scenes))) if len(self.scenes) > 1 else 0
+            if self.shape_ranges is not None:
+                scene = random_shape_scene(self.np_random, self.scenes[idx], self.shape_ranges)
+                sim, key = Simulator(scene, contact_tol=self.contact_tol), None
+            else:
+                scene, key = self.scenes[idx], idx
+                if idx not in self._sims:
+                    self._sims[idx] = Simulator(scene, contact_tol=self.contact_tol)
+                sim = self._sims[idx]
+        error = None
+        if "palm" in opts or "fingers" in opts:
+            state = sim.settle(scene.object.start_pose, self._check_hand(scene, opts))
+        elif self.start == "scene":
+            state = sim.reset()
+        else:
+            state, error = self._preliftoff(sim, key)
+            if self.start == "random":
+                state = self._perturb(sim, state)
+        self._sim, self._state, self._steps = sim, state, 0
+        self._analysis = self._analyse(state)
+        self._y0 = float(state.object_pose[1])
+        self._left_support = not self._analysis["on_support"]
+        self._success_rewarded = False
+        self._phi = self._potential(state)
+        info = self._info(state, dropped=False, reward_info=dict.fromkeys(_REWARD_KEYS, 0.0))
+        if error is not None:
+            info["sim_error"] = error
+        if self.render_mode == "human":
+            self.render()
+        return self._get_obs(), info
+
+    def _preliftoff(self, sim: Simulator, key: int | None) -> tuple[State, str | None]:
+        if key is not None and key in self._preliftoff_cache:
+            return self._preliftoff_cache[key], None
+        scene = sim.scene
+        state = sim.settle(scene.object.start_pose, hand_setup(scene))
+        error = None
+        try:
+            state = close_until_touch(sim, state)
+        except (SimulationError, SolverError) as exc:
+            error = f"pre-liftoff closing stopped: {exc}"
+        if key is not None and error is None:
+            self._preliftoff_cache[key] = state
+        return state, error
+
+    def _perturb(self, sim: Simulator, state: State) -> State:
+        scene = sim.scene
+        w = scene.palm.width
+        xy, th, q = RANDOM_PALM_XY * w, RANDOM_PALM_THETA, RANDOM_FINGER
+        scale = np.array([xy, xy, th, q, q])
+        lim = scene.joint_limits
+        for _ in range(RANDOM_START_TRIES):
+            h = state.hand + self.np_random.uniform(-1.0, 1.0, 5) * scale
+            h[3:] = np.clip(h[3:], lim[:, 0], lim[:, 1])
+            if _placement_problem(scene, state.object_pose, h) is None:
+                try:
+                    return sim.settle(state.object_pose, h)
+                except (SimulationError, SolverError):
+                    continue  # draw another perturbation
+        return state
+
+    # ------------------------------------------------------------------ step
+    def step(self, action: Any):
+        a = self._check_action(action)
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        state, sim = self._state, self._sim
+        h = state.hand
+        fingers = h[3:] + self.max_finger_step * a[:2] * np.array([1.0, -1.0])
+        palm = None
+        if self.palm_control:
+            w = sim.scene.palm.width
+            x0 = sim.scene.object.start_pose[0]
+            step = self.max_palm_step * np.array([w, w, 1.0])
+            palm = np.clip(
+                h[:3] + step * a[2:],
+                [x0 - PALM_X_RANGE * w, 0.0, -PALM_THETA_MAX],
+                [x0 + PALM_X_RANGE * w, PALM_Y_MAX * w, PALM_THETA_MAX],
+            )
+        self._steps += 1
+        try:
+            new = sim.move_hand(state, palm=palm, fingers=fingers)
+            if not (np.all(np.isfinite(new.object_pose)) and np.all(np.isfinite(new.hand))):
+                raise SimulationError(
+                    f"non-finite state: object {new.object_pose}, hand {new.hand}"
+                )
+        except (SimulationError, SolverError) as exc:
+            reward_info = dict.fromkeys(_REWARD_KEYS, 0.0)
+            reward_info["reward_lift"] = -self._phi  # Phi = 0 at a terminal state
+            self._phi = 0.0
+            info = self._info(state, dropped=False, reward_info=reward_info)
+            info["sim_error"] = f"{type(exc).__name__}: {exc}"
+            return self._get_obs(), float(reward_info["reward_lift"]), True, False, info
+
+        analysis = self._analyse(new)
+        dropped = (analysis["on_support"] and self._left_support) or analysis["out_of_reach"]
+        self._left_support |= not analysis["on_support"]
+        self._state, self._analysis = new, analysis
+        reward, reward_info = self._get_rew(new, a, dropped)
+        info = self._info(new, dropped=dropped, reward_info=reward_info)
+        if self.render_mode == "human":
+            self.render()
+        return self._get_obs(), reward, bool(dropped), False, info
+
+    def _analyse(self, state: State) -> dict[str, Any]:
+        """Form closure (always), y* (only when needed) and where the object is."""
+        on_support = any(c.body == "support" for c in state.contacts)
+        # Planar form closure needs at least four frictionless contacts: skip the LP below.
+        closure = len(state.contacts) >= 4 and is_form_closure(state)
+        grip = grip_objective(state) if closure or self.always_compute_grip else math.nan
+        p_P = _in_palm_frame(state)
+        reach = REACH * state.scene.palm.width
+        return {
+            "on_support": on_support,
+            "form_closure": closure,
+            "grip": grip,
+            "success": closure and not on_support,
+            "out_of_reach": bool(np.abs(p_P[:2]).max() > reach),
+        }
+
+    def _potential(self, state: State) -> float:
+        height = (state.object_pose[1] - self._y0) / state.scene.palm.width
+        return self.reward_weights["lift"] * float(height)
+
+    def _get_rew(self, state: State, a: np.ndarray, dropped: bool) -> tuple[float, dict]:
+        weights, an = self.reward_weights, self._analysis
+        bonus = 0.0
+        if an["success"] and not self._success_rewarded:
+            bonus, self._success_rewarded = weights["form_closure"], True
+        grip = 0.0
+        if an["success"] and math.isfinite(an["grip"]):
+            y = min(an["grip"] / state.scene.object_weight, GRIP_MAX)
+            grip = weights["grip"] * (1.0 - y / GRIP_MAX)
+        phi = 0.0 if dropped else self._potential(state)
+        lift = self.gamma * phi - self._phi
+        self._phi = phi
+        terms = {
+            "form_closure": bonus,
+            "grip": grip,
+            "lift": lift,
+            "drop": -weights["drop"] if dropped else 0.0,
+            "ctrl": -weights["ctrl"] * float(a @ a),
+        }
+        reward_info = {f"reward_{k}": float(v) for k, v in terms.items()}
+        return float(sum(reward_info.values())), reward_info
+
+    # ------------------------------------------------------------------ observation / info
+    def _get_obs(self) -> np.ndarray:
+        state, an = self._state, self._analysis
+        scene = state.scene
+        w, weight = scene.palm.width, scene.object_weight
+        x0 = scene.object.start_pose[0]
+        x_p, y_p, th_p, q1, q2 = state.hand
+        x_o, y_o, th_o = state.object_pose
+        p_P = _in_palm_frame(state)
+        n = self.max_vertices
+        verts = np.zeros((n, 2))
+        mask = np.zeros(n)
+        v = scene.object.vertices_B / w
+        verts[: len(v)], mask[: len(v)] = v, 1.0
+        contacts = np.zeros((len(BODIES), 2))
+        for c in state.contacts:
+            row = contacts[BODIES.index(c.body)]
+            row[0] += 1.0
+            row[1] += c.force / weight
+        grip = an["grip"] / weight if an["form_closure"] else GRIP_MAX
+        obs = np.concatenate(
+            [
+                [(x_p - x0) / w, y_p / w, th_p, q1, q2],
+                [(x_o - x0) / w, y_o / w, math.sin(th_o), math.cos(th_o)],
+                [p_P[0] / w, p_P[1] / w, math.sin(p_P[2]), math.cos(p_P[2])],
+                verts.ravel(),
+                mask,
+                contacts.ravel(),
+                [float(an["form_closure"]), grip if math.isfinite(grip) else GRIP_MAX],
+                [(y_o - self._y0) / w],
+            ]
+        )
+        return np.clip(obs, self._obs_low, self._obs_high).astype(np.float32)
+
+    def _info(self, state: State, dropped: bool, reward_info: dict) -> dict[str, Any]:
+        an = self._analysis
+        info = {
+            "object_pose": state.object_pose.copy(),
+            "palm_pose": state.palm_pose.copy(),
+            "finger_angles": state.finger_angles.copy(),
+            "contacts": [c.as_dict() for c in state.contacts],
+            "form_closure": bool(an["form_closure"]),
+            "grip_force": float(an["grip"]) if an["form_closure"] else NAN,
+            "jammed": bool(state.jammed),
+            "hand_blocked": bool(state.hand_blocked),
+            "dropped": bool(dropped),
+            "events": [e.kind for e in state.events],
+            "is_success": bool(an["success"]),
+            **reward_info,
+        }
+        if self.always_compute_grip:
+            info["grip_objective"] = float(an["grip"])
+        return info
+
+    # ------------------------------------------------------------------ rendering
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; make the env with "
+                'render_mode="rgb_array" or "human"'
+            )
+            return None
+        if self._state is None:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            from grasp_env.render import Renderer
+
+            self._renderer = Renderer(*self.render_size, fps=self.metadata["render_fps"])
+        frame = self._renderer.draw(self._state, self._caption())
+        if self.render_mode == "human":
+            self._renderer.show(frame)
+            return None
+        return frame
+
+    def _caption(self) -> str:
+        an = self._analysis
+        text = f"{self._state.scene.name} | step {self._steps}"
+        if an["form_closure"]:
+            y = an["grip"] / self._state.scene.object_weight
+            text += f" | form closure | y* = {y:.2f} W"
+        else:
+            text += " | no form closure"
+        return text
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self) -> dict:
+        d = self.__dict__.copy()
+        d["_renderer"] = None  # pygame objects do not pickle; a copy renders afresh
+        return d
+
+
+_REWARD_KEYS = tuple(f"reward_{k}" for k in _REWARD_TERMS)
+
+
+class _NaN(float):
+    """The ``nan`` of ``info["grip_force"]`` outside form closure: a float NaN that compares
+    equal to another NaN, so that infos of identical steps compare equal (gymnasium's
+    ``check_env`` determinism check compares infos with ``==``)."""
+
+    def __new__(cls) -> _NaN:
+        return super().__new__(cls, "nan")
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, float) and math.isnan(other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self == other
+
+    __hash__ = float.__hash__
+
+    def __reduce__(self):
+        return (_NaN, ())
+
+
+NAN = _NaN()
+
+
+# ---------------------------------------------------------------------- helpers
+def close_until_touch(sim: Simulator, state: State, step: float = PRELIFTOFF_STEP) -> State:
+    """Close both fingers at equal rates until each has touched the object or they jam.
+
+    The fingers move in steps of ``step`` rad; a finger that touches stops there (its first
+    touch located exactly from the simulator's ``new_contact`` event) while the other closes
+    on. Stops too when both fingers are at their closing limits or the hand is blocked.
+    """
+    lim = sim.scene.joint_limits
+    closing = np.array([1.0, -1.0])  # finger 1 closes as q1 grows, finger 2 as q2 falls
+    for _ in range(int(4 * math.pi / step) + 4):
+        done = [_touches(state, i) for i in range(2)]
+        if all(done) or state.jammed or state.hand_blocked:
+            break
+        q = state.finger_angles
+        target = q.copy()
+        for i in range(2):
+            if not done[i]:
+                target[i] = np.clip(q[i] + closing[i] * step, lim[i, 0], lim[i, 1])
+        if np.array_equal(target, q):
+            break
+        new = sim.move_hand(state, fingers=target)
+        touch = [
+            e.s
+            for e in new.events
+            if e.kind == "new_contact"
+            and any(k[0] in (geo.FINGER1, geo.FINGER2) for k in e.contacts)
+        ]
+        if touch and min(touch) < 1.0:
+            new = sim.move_hand(state, fingers=q + min(touch) * (target - q))
+        state = new
+    return state
+
+
+def _touches(state: State, finger: int) -> bool:
+    name = f"finger{finger + 1}"
+    return any(c.body == name for c in state.contacts)
+
+
+def _in_palm_frame(state: State) -> np.ndarray:
+    """Object pose ``(x, y, theta)`` in the palm frame."""
+    x_p, y_p, th_p = state.palm_pose
+    d = state.object_pose[:2] - (x_p, y_p)
+    c, s = math.cos(th_p), math.sin(th_p)
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], state.object_pose[2] - th_p])
+
+
+def _placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:
+    """Why a hand configuration is not allowed with the object at ``object_pose`` (None if
+    it is): a hand body overlapping the object or entering the support."""
+    tol = 1e-9 * scene.palm.width
+    obj = geo.transform(object_pose, scene.object.vertices_B)
+    names = ("palm", "finger 1", "finger 2")
+    for name, poly in zip(names, kin.hand_polygons_W(scene, hand), strict=True):
+        if poly[:, 1].min() < -tol:
+            return f"the {name} enters the support (lowest y = {poly[:, 1].min():.4g})"
+        depth = geo.penetration_depth(poly, obj)
+        if depth > tol:
+            return f"the {name} overlaps the object by {depth:.4g}"
+    return None
+
+
+def _observation_bounds(n: int) -> tuple[np.ndarray, np.ndarray]:
+    pi = math.pi
+    low = [-PALM_X_RANGE, 0.0, -PALM_THETA_MAX, -pi, -pi]
+    high = [PALM_X_RANGE, PALM_Y_MAX, PALM_THETA_MAX, pi, pi]
+    low += [-OBJECT_X_RANGE, 0.0, -1.0, -1.0, -REACH, -REACH, -1.0, -1.0]
+    high += [OBJECT_X_RANGE, OBJECT_Y_MAX, 1.0, 1.0, REACH, REACH, 1.0, 1.0]
+    low += [-VERTEX_RANGE] * (2 * n) + [0.0] * n
+    high += [VERTEX_RANGE] * (2 * n) + [1.0] * n
+    low += [0.0] * (2 * len(BODIES))
+    high += [COUNT_MAX, FORCE_MAX] * len(BODIES)
+    low += [0.0, 0.0, HEIGHT_MIN]
+    high += [1.0, GRIP_MAX, HEIGHT_MAX]
+    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+
+def _short(spec: Any) -> str:
+    if isinstance(spec, Scene):
+        return repr(spec.name)
+    text = repr(spec)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _flag(value: Any, name: str) -> bool:
+    if not isinstance(value, bool | np.bool_):
+        raise TypeError(f"{name} must be a bool, got {value!r}")
+    return bool(value)
+
+
+def _number(
+    value: Any,
+    name: str,
+    lo: float,
+    hi: float,
+    lo_open: bool = True,
+    hi_open: bool = False,
+) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    x = float(value)
+    ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)
+    if not ok:
+        interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        raise ValueError(f"{name} must be finite and in {interval}, got {value!r}")
+    return x
+
+
+def _numbers(value: Any, name: str, size: int, lo: float, hi: float) -> np.ndarray:
+    if not isinstance(value, list | tuple | np.ndarray) or len(value) != size:
+        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
+    return np.array([_number(v, f"{name}[{i}]", lo, hi) for i, v in enumerate(value)])
+
+
+def _vector(value: Any, name: str, size: int) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {size} numbers, got {value!r}") from None
+    if arr.shape != (size,):
+        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return arr
+
+
+def _shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float]] | None:
+    if value is None or value is False:
+        return None
+    if value is True:
+        value = {}
+    if not isinstance(value, dict):
+        raise TypeError(f"shape_randomizer must be None, True or a dict, got {value!r}")
+    unknown = sorted(set(value) - set(DEFAULT_SHAPE_RANGES), key=str)
+    if unknown:
+        raise ValueError(
+            f"shape_randomizer: unknown key(s) {unknown}; allowed: {list(DEFAULT_SHAPE_RANGES)}"
+        )
+    out = dict(DEFAULT_SHAPE_RANGES)
+    for key, raw in value.items():
+        name = f"shape_randomizer[{key!r}]"
+        if not isinstance(raw, list | tuple) or len(raw) != 2:
+            raise ValueError(f"{name} must be a (low, high) pair, got {raw!r}")
+        lo, hi = (_number(x, name, 0.0, math.inf, hi_open=True) for x in raw)
+        if lo > hi:
+            raise ValueError(f"{name} must have low <= high, got {raw!r}")
+        if key == "vertices":
+            if any(isinstance(x, bool) or not isinstance(x, int | np.integer) for x in raw):
+                raise TypeError(f"{name} must be two ints, got {raw!r}")
+            if lo < 3 or hi > max_vertices:
+                raise ValueError(f"{name} must lie in [3, max_vertices={max_vertices}]: {raw!r}")
+            lo, hi = int(lo), int(hi)
+        if key == "aspect" and lo < 1.0:
+            raise ValueError(f"{name} must be >= 1, got {raw!r}")
+        out[key] = (lo, hi)
+    return out
+
+
+__all__ = ["FrictionlessGraspEnv", "close_until_touch"]

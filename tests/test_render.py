@@ -1,0 +1,175 @@
+"""Headless rendering: the shared pygame renderer and the environment's render modes."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+import pickle
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+import grasp_env
+from grasp_env import geometry as geo
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.render import (
+    BACKGROUND,
+    CONTACT_COLOR,
+    FORCE_COLOR,
+    OBJECT_COLOR,
+    Renderer,
+    scene_bounds,
+)
+
+
+def _pixels_of(frame: np.ndarray, color) -> int:
+    return int(np.all(frame == np.array(color, dtype=np.uint8), axis=-1).sum())
+
+
+@pytest.fixture(scope="module")
+def grasped_state():
+    """fig13 with both fingers on the object (contacts with positive forces)."""
+    sim = grasp_env.Simulator("fig13")
+    state = sim.reset()
+    for _ in range(12):
+        state = sim.move_hand(state, fingers=state.finger_angles + np.array([0.05, -0.05]))
+    assert any(c.body.startswith("finger") and c.force > 0 for c in state.contacts)
+    return state
+
+
+def test_import_does_not_import_pygame():
+    code = "import sys, grasp_env; assert 'pygame' not in sys.modules, 'pygame imported'"
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("size", [(640, 480), (200, 320)], ids=["640x480", "200x320"])
+def test_frame_shape_and_content(grasped_state, size):
+    renderer = Renderer(*size)
+    try:
+        frame = renderer.draw(grasped_state, text="step 12 | form closure")
+    finally:
+        renderer.close()
+    assert frame.shape == (size[1], size[0], 3)
+    assert frame.dtype == np.uint8
+    # The object's centroid pixel shows the object, not the background.
+    x, y = renderer.to_pixels(grasped_state.object_pose[:2]).astype(int)
+    assert tuple(frame[y, x]) == OBJECT_COLOR != BACKGROUND
+    assert _pixels_of(frame, OBJECT_COLOR) > 100
+    assert _pixels_of(frame, CONTACT_COLOR) > 0
+    assert _pixels_of(frame, FORCE_COLOR) > 0
+
+
+def test_world_to_pixel_map_is_y_up_and_isotropic(grasped_state):
+    renderer = Renderer(400, 300, world_bounds=(-1.0, 1.0, -0.5, 1.0))
+    renderer._fit(grasped_state.scene)
+    p = renderer.to_pixels(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
+    dx, dy = p[1] - p[0], p[2] - p[0]
+    assert dx[0] > 0 and dy[1] < 0  # x right, y up (pixel rows grow downwards)
+    assert abs(dx[0]) == pytest.approx(abs(dy[1]))
+    # The requested box is inside the image.
+    corners = renderer.to_pixels(np.array([[-1.0, -0.5], [1.0, 1.0]]))
+    assert (
+        np.all(corners >= -1e-9) and np.all(corners[:, 0] <= 400) and np.all(corners[:, 1] <= 300)
+    )
+
+
+def test_scene_bounds_contain_hand_and_object():
+    scene = grasp_env.load_scene("fig13")
+    x0, x1, y0, y1 = scene_bounds(scene)
+    for poly in grasp_env.kinematics.hand_polygons_W(scene, scene.initial_hand):
+        assert poly[:, 0].min() > x0 and poly[:, 0].max() < x1
+        assert poly[:, 1].min() >= y0 and poly[:, 1].max() < y1
+    v = scene.object.vertices_W0
+    assert v[:, 0].min() > x0 and v[:, 0].max() < x1 and y0 < 0 < v[:, 1].max() < y1
+
+
+def test_text_and_force_scale_change_the_frame(grasped_state):
+    renderer = Renderer(320, 240)
+    plain = renderer.draw(grasped_state)
+    text = renderer.draw(grasped_state, text="y* = 1.23 W")
+    long = renderer.draw(grasped_state, force_scale=1.0)
+    renderer.close()
+    assert np.any(plain != text)
+    assert _pixels_of(long, FORCE_COLOR) > _pixels_of(plain, FORCE_COLOR)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"width": 0}, "width"),
+        ({"height": 2.5}, "height"),
+        ({"world_bounds": (1.0, 0.0, 0.0, 1.0)}, "world_bounds"),
+        ({"world_bounds": (0.0, 1.0, 0.0, np.nan)}, "world_bounds"),
+    ],
+    ids=["zero-width", "float-height", "inverted-bounds", "nan-bounds"],
+)
+def test_renderer_refuses_bad_arguments(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        Renderer(**kwargs)
+
+
+def test_renderer_pickles_after_drawing(grasped_state):
+    renderer = Renderer(160, 120)
+    frame = renderer.draw(grasped_state)
+    copy = pickle.loads(pickle.dumps(renderer))
+    assert np.array_equal(copy.draw(grasped_state), frame)
+    copy.close()
+    renderer.close()
+
+
+def test_object_pixels_follow_the_object_pose(grasped_state):
+    renderer = Renderer(320, 240)
+    frame = renderer.draw(grasped_state)
+    renderer.close()
+    obj_W = geo.transform(grasped_state.object_pose, grasped_state.scene.object.vertices_B)
+    box = renderer.to_pixels(obj_W)
+    ys, xs = np.nonzero(np.all(frame == np.array(OBJECT_COLOR, dtype=np.uint8), axis=-1))
+    assert xs.min() >= box[:, 0].min() - 1 and xs.max() <= box[:, 0].max() + 1
+    assert ys.min() >= box[:, 1].min() - 1 and ys.max() <= box[:, 1].max() + 1
+
+
+# ---------------------------------------------------------------------- env render modes
+def test_env_rgb_array_frames():
+    env = FrictionlessGraspEnv(render_mode="rgb_array", render_width=240, render_height=180)
+    env.reset(seed=0)
+    frames = [env.render()]
+    for _ in range(3):
+        env.step(np.array([1.0, 1.0], dtype=np.float32))
+        frames.append(env.render())
+    for frame in frames:
+        assert frame.shape == (180, 240, 3) and frame.dtype == np.uint8
+        assert _pixels_of(frame, OBJECT_COLOR) > 50
+        assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 3
+    # Picklable after rendering; the copy renders the same frame.
+    copy = pickle.loads(pickle.dumps(env))
+    assert np.array_equal(copy.render(), frames[-1])
+    copy.close()
+    env.close()
+    assert env._renderer is None
+
+
+def test_env_without_render_mode_creates_no_renderer():
+    env = FrictionlessGraspEnv()
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert env.render() is None
+    assert env._renderer is None
+    assert "grasp_env.render" not in sys.modules or env._renderer is None
+    env.close()
+
+
+def test_env_human_mode_headless():
+    env = FrictionlessGraspEnv(render_mode="human", render_width=160, render_height=120)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env.reset(seed=0)
+        assert env.render() is None
+        env.step(np.zeros(2, dtype=np.float32))
+    env.close()
