@@ -46,7 +46,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scene", default="fig13")
     ap.add_argument("--dq", type=float, default=0.01, help="finger increment per move (rad)")
     ap.add_argument("--repeat", type=int, default=1)
-    ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "work_precision.md")
+    ap.add_argument(
+        "--out", type=Path, default=Path(__file__).parent / "results" / "work_precision.md"
+    )
     args = ap.parse_args(argv)
 
     ref, ref_moves, ref_time = run(args.scene, 1e-12, 0.01, args.dq, 1)
@@ -55,14 +57,18 @@ def main(argv: list[str] | None = None) -> int:
         for max_step in (1.0, 0.25, 0.05):
             state, moves, t = run(args.scene, tol, max_step, args.dq, args.repeat)
             err = float(np.abs(state.object_pose - ref.object_pose).max())
-            rows.append((tol, max_step, err, t, moves, state.jammed, grasp_env.is_form_closure(state)))
+            rows.append(
+                (tol, max_step, err, t, moves, state.jammed, grasp_env.is_form_closure(state))
+            )
             print(f"tol={tol:.0e} max_step={max_step:<5} error={err:.2e} time={t * 1e3:8.1f} ms")
     lines = [
-        f"# Work-precision: `{args.scene}` closing motion (fingers at equal rates, {args.dq} rad/move)",
+        f"# Work-precision: `{args.scene}` closing motion "
+        f"(fingers at equal rates, {args.dq} rad/move)",
         "",
         f"Machine: {platform.machine()}, {platform.processor() or 'cpu'}, Python "
         f"{platform.python_version()}, numpy {np.__version__}, {time.strftime('%Y-%m-%d')}.",
-        f"Reference: contact_tol=1e-12, max_step=0.01 ({ref_moves} moves, {ref_time * 1e3:.0f} ms); "
+        f"Reference: contact_tol=1e-12, max_step=0.01 ({ref_moves} moves, "
+        f"{ref_time * 1e3:.0f} ms); "
         "error = max |object pose - reference| at the jam.",
         "",
         "| contact_tol | max_step | pose error | time (ms) | moves | jammed | form closure |",

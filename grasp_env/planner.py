@@ -295,7 +295,9 @@ def lift(
         (dq / 2, -dq, 0.0),
         (dq, 0.0, 0.0),
         (0.0, -dq, 0.0),
-        (0.0, 0.0, palm_step), (dq, dq, 0.0), (-dq, -dq, 0.0),
+        (0.0, 0.0, palm_step),
+        (dq, dq, 0.0),
+        (-dq, -dq, 0.0),
     ]
     lifted = False
     for _ in range(max_steps):
