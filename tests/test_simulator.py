@@ -331,22 +331,26 @@ def assert_jam_genuine(state: State, dh: np.ndarray, where: str) -> None:
             for c in state.contacts
         ]
     )
+    tight = {"primal_feasibility_tolerance": 1e-10}
+    free = [(None, None)] * 3
+    feasible = linprog(np.zeros(3), A_ub=-V, b_ub=-xi, bounds=free, options=tight)
+    if feasible.status not in (0, 2):  # HiGHS can end "unknown" at the tight tolerance
+        feasible = linprog(np.zeros(3), A_ub=-V, b_ub=-xi, bounds=free)
+    if feasible.status == 2:
+        return  # the hand cannot go on: a genuine jam
+    assert feasible.status == 0, f"{where}: jam feasibility LP: {feasible.message}"
     box = np.vstack([np.hstack([sgn * np.eye(3), -np.ones((3, 1))]) for sgn in (1.0, -1.0)])
-    problem = {
-        "c": [0.0, 0.0, 0.0, 1.0],
-        "A_ub": np.vstack([np.hstack([-V, np.zeros((len(V), 1))]), box]),
-        "b_ub": np.concatenate([-xi, np.zeros(6)]),
-        "bounds": [(None, None)] * 3 + [(0, None)],
-    }
-    res = linprog(**problem, options={"primal_feasibility_tolerance": 1e-10})
-    if res.status not in (0, 2):  # HiGHS can end "unknown" at the tight tolerance
-        res = linprog(**problem)
-    if res.status == 2:
-        return
-    assert res.status == 0, f"{where}: jam LP: {res.message}"
+    res = linprog(
+        [0.0, 0.0, 0.0, 1.0],
+        A_ub=np.vstack([np.hstack([-V, np.zeros((len(V), 1))]), box]),
+        b_ub=np.concatenate([-xi, np.zeros(6)]),
+        bounds=[*free, (0, None)],
+    )
+    # The feasible point bounds the least speed from above if the second LP stalls.
+    least = res.fun if res.status == 0 else float(np.abs(feasible.x).max())
     speed = max(float(np.abs(xi).max()), 1e-12)
-    assert res.fun >= JAM_SPEED_RATIO * speed, (
-        f"{where}: jammed, but the hand could go on with the object moving at {res.fun:.3g} "
+    assert least >= JAM_SPEED_RATIO * speed, (
+        f"{where}: jammed, but the hand could go on with the object moving at {least:.3g} "
         f"(hand contact speed {speed:.3g}; contacts {contact_set(state)})"
     )
 
@@ -535,28 +539,28 @@ def run_random_path(path_index: int, seed: int = 20240611) -> None:
 N_DEFAULT_PATHS = 27  # 3 per bundled scene
 N_SLOW_PATHS = 300
 
-#: Paths that fail with the simulator as of commit 1f7bb11 (reported to the lead with
+#: Paths that fail with the simulator as of commit 8166210 (reported to the lead with
 #: reproducers); xfail(strict=False) so that fixes show up as XPASS.
-_PINCH = (
-    "jam declared after a lost contact leaves two finger contacts that cannot hold the "
-    "object: the returned state has all contact forces 0 (should be a fall)"
+_FALSE_JAM = (
+    "jam reported where the velocity LP for the continued hand motion is feasible with a "
+    "moderate object velocity (first-order steps along it stay within tolerance): the hand "
+    "could go on (often right after a lost contact leaves two fingertip contacts)"
 )
 _FOLD = (
-    "jam at a fold (two fingertip normals exactly opposite): the rest-force LP is "
-    "infeasible and Simulator._rest_forces returns zeros, so the state is not in equilibrium"
+    "jam at a fold (fingertip normals exactly opposite): the returned contact forces are "
+    "1e9..5e12 x weight and leave an equilibrium residual of 1e-6..5e-4 x weight"
 )
 _OVERLAP = (
     "after finger 1's tip meets the triangle's apex (vertex-vertex), the jammed state has "
     "finger 1 overlapping the object by 6.1e-4 with no vertex inside the other body"
 )
-_EARLY_JAM = (
-    "jam declared while the velocity LP with the hand moving is still feasible at a moderate "
-    "object speed (not a fold)"
-)
 KNOWN_FAILURES = {
-    6: _EARLY_JAM,
-    16: _PINCH, 70: _PINCH, 198: _PINCH,
-    28: _FOLD, 168: _FOLD,
+    **dict.fromkeys(
+        (6, 16, 32, 34, 70, 81, 111, 126, 140, 151, 160, 180, 192, 198, 221, 225, 228, 237,
+         255, 261, 264, 288, 292, 312),
+        _FALSE_JAM,
+    ),
+    **dict.fromkeys((28, 168, 249), _FOLD),
     139: _OVERLAP,
 }  # fmt: skip
 
@@ -1133,7 +1137,8 @@ def lowest_hand_y(scene: grasp_env.Scene, hand: np.ndarray) -> float:
 
 
 BLOCKED_MOVES = [
-    # palm target, finger target (None: unchanged), from the fig13 start
+    # palm target, finger target (None: unchanged), from the fig13 start. "lower" is a
+    # regression case: before commit 8166210 it stopped 2.98e-9 (3x contact_tol) short.
     pytest.param((0.014953080375357005, 0.6, 0.0), None, id="lower"),
     pytest.param((0.014953080375357005, 0.5, 0.0), None, id="lower_far"),
     pytest.param((0.0, 0.62, 0.08), None, id="lower_and_tilt"),
