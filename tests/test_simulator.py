@@ -6,7 +6,9 @@ the hand from DESIGN.md section 2 (not from :mod:`grasp_env.kinematics` or
 :mod:`grasp_env.geometry`), measures penetration with its own separating-axis test,
 re-derives every contact's gap from its point and normal, sums the contact forces for the
 object's equilibrium and solves the velocity LP ``min m g v_y s.t. V_ob v >= 0`` itself
-with :func:`scipy.optimize.linprog`. The motions are checked against closed forms (a block
+with :func:`scipy.optimize.linprog`; a jammed state must also make the hand's continued
+motion impossible by an LP solved here (:func:`assert_jam_genuine`). The motions are
+checked against closed forms (a block
 tipping about a pivot, a square wedged between parallel fingertips, a hand lowered onto the
 support), a finer run (tolerance and step convergence), the same move cut into pieces, and
 the paper's section-4 experiment.
