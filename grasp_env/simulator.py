@@ -24,8 +24,6 @@ velocity LP: the object falls along the steepest admissible descent of its poten
 from __future__ import annotations
 
 import itertools
-import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import nnls
@@ -38,16 +36,6 @@ from grasp_env import qp
 from grasp_env.errors import SolverError
 from grasp_env.scene import Scene, load_scene
 from grasp_env.state import Event, State
-
-
-@dataclass
-class _Step:
-    """Working data of one configuration along the move (not part of the public state)."""
-
-    s: float
-    q: np.ndarray
-    pl: ct.Placement
-    keys: list = field(default_factory=list)
 
 
 class SimulationError(RuntimeError):
@@ -663,4 +651,3 @@ def _finite_vector(value, size: int, name: str) -> np.ndarray:
 
 
 __all__ = ["SimulationError", "Simulator"]
-_ = math
