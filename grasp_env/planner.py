@@ -74,7 +74,6 @@ class Plan:
     message: str = ""
     placement: str = ""
     cpu_time: float = 0.0
-    branches: list[dict] = field(default_factory=list)
 
     @property
     def success(self) -> bool:
