@@ -1,0 +1,1 @@
+"""Policies for ``FrictionlessGrasp-v0``: the paper's scripted planner and PPO agents."""
