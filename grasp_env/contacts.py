@@ -15,6 +15,8 @@ Normals always point into the object; gaps are positive when the bodies are apar
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,18 +93,27 @@ class Placement:
 
     def __init__(self, scene: Scene, q: np.ndarray, h: np.ndarray) -> None:
         self.scene, self.q, self.h = scene, q, h
-        R = geo.rot(q[2])
+        local = _local_geometry(scene)
+        th = h[2]
+        c, s = math.cos(th), math.sin(th)
+        half = scene.palm.width / 2.0
+        origins = np.array(
+            [[q[0], q[1]], [h[0], h[1]], [h[0] - c * half, h[1] - s * half],
+             [h[0] + c * half, h[1] + s * half]]
+        )  # fmt: skip
+        angles = np.array([q[2], th, th + h[3], th + h[4]])
+        # rotate every body's vertices and normals at once: (x, y) -> (c x - s y, s x + c y)
+        cv, sv = np.cos(angles)[local.body], np.sin(angles)[local.body]
+        x, y = local.points[:, 0], local.points[:, 1]
+        world = np.empty_like(local.points)
+        world[:, 0] = cv * x - sv * y
+        world[:, 1] = sv * x + cv * y
+        m, n = local.n_vertices, local.n_object
+        world[:m] += origins[local.body[:m]]
         self.com_W = q[:2]
-        self.obj_W = scene.object.vertices_B @ R.T + q[:2]
-        self.obj_n_W = object_normals_B(scene) @ R.T
-        poses = kin.body_poses_W(scene, h)
-        self.hand_W, self.hand_n_W = [], []
-        for pose, poly, n_B in zip(
-            poses, kin.hand_polygons_local(scene), _hand_normals_B(scene), strict=True
-        ):
-            Rb = geo.rot(pose[2])
-            self.hand_W.append(poly @ Rb.T + pose[:2])
-            self.hand_n_W.append(n_B @ Rb.T)
+        self.obj_W, self.obj_n_W = world[:n], world[m : m + n]
+        self.hand_W = world[n:m].reshape(3, 4, 2)
+        self.hand_n_W = world[m + n :].reshape(3, 4, 2)
 
     def evaluate(self, key: ContactKey) -> tuple[np.ndarray, np.ndarray, float, float, float]:
         """Point (2,), normal into the object (2,), gap, edge parameter t and edge length.
@@ -131,20 +142,27 @@ class Placement:
 _UP = np.array([0.0, 1.0])
 
 
-def object_normals_B(scene: Scene) -> np.ndarray:
-    """Outward edge normals of the object in its own frame, shape (n, 2) (cached on the scene)."""
-    cache = scene.__dict__.get("_normals_B")
-    if cache is None:
-        cache = geo.edge_normals(scene.object.vertices_B)
-        object.__setattr__(scene, "_normals_B", cache)
-    return cache
+class _LocalGeometry:
+    """Body-frame vertices, then outward edge normals, of the object and the three hand bodies
+    stacked in one array, with each row's body (0 object, 1-3 hand), so that one rotation
+    places them all."""
+
+    __slots__ = ("body", "n_object", "n_vertices", "points")
+
+    def __init__(self, scene: Scene) -> None:
+        polys = [scene.object.vertices_B, *kin.hand_polygons_local(scene)]
+        body = np.repeat(np.arange(4), [len(p) for p in polys])
+        self.points = np.concatenate(polys + [geo.edge_normals(p) for p in polys])
+        self.body = np.concatenate((body, body))
+        self.n_object, self.n_vertices = len(polys[0]), len(body)
 
 
-def _hand_normals_B(scene: Scene) -> list[np.ndarray]:
-    cache = scene.__dict__.get("_hand_normals_B")
+def _local_geometry(scene: Scene) -> _LocalGeometry:
+    """The scene's stacked body-frame geometry (cached on the scene)."""
+    cache = scene.__dict__.get("_local_geometry")
     if cache is None:
-        cache = [geo.edge_normals(p) for p in kin.hand_polygons_local(scene)]
-        object.__setattr__(scene, "_hand_normals_B", cache)
+        cache = _LocalGeometry(scene)
+        object.__setattr__(scene, "_local_geometry", cache)
     return cache
 
 

@@ -147,24 +147,24 @@ class Simulator:
         """Largest ``s`` in [0, 1] before a hand vertex enters the support, and whether the
         move is cut short. Hand vertex heights are smooth in ``s``: a dense scan brackets the
         first crossing, and bisection locates it to ``contact_tol``."""
+        dh = h1 - h0
 
         def lowest(s: float) -> float:
-            return min(p[:, 1].min() for p in kin.hand_polygons_W(self.scene, h0 + s * (h1 - h0)))
+            return float(kin.lowest_hand_points(self.scene, h0 + s * dh)[0])
 
-        if lowest(1.0) >= -self.tol and np.allclose(h0[2:], h1[2:]):
-            return 1.0, False  # pure translation: heights are linear in s
         grid = np.linspace(0.0, 1.0, 65)
-        for a, b in itertools.pairwise(grid):
-            if lowest(b) < -self.tol:
-                lo, hi = a, b
-                while hi - lo > 1e-16 and lowest(lo) > self.tol:  # stop touching, not above
-                    mid = 0.5 * (lo + hi)
-                    if lowest(mid) < 0.0:
-                        hi = mid
-                    else:
-                        lo = mid
-                return lo, True
-        return 1.0, False
+        low = kin.lowest_hand_points(self.scene, h0 + grid[:, None] * dh)
+        below = np.nonzero(low[1:] < -self.tol)[0]
+        if len(below) == 0:
+            return 1.0, False
+        lo, hi = grid[below[0]], grid[below[0] + 1]
+        while hi - lo > 1e-16 and lowest(lo) > self.tol:  # stop touching, not above
+            mid = 0.5 * (lo + hi)
+            if lowest(mid) < 0.0:
+                hi = mid
+            else:
+                lo = mid
+        return lo, True
 
     # ------------------------------------------------------------------ core loop
     def _advance(
@@ -179,7 +179,8 @@ class Simulator:
         carry = None  # (E, v) kept from an accepted step whose active set stays valid
         for _ in range(self.max_iterations):
             h = h0 + s * dh
-            if carry is not None:
+            determined = carry is not None
+            if determined:
                 plan, carry = carry, None
             else:
                 pl = ct.Placement(self.scene, q, h)
@@ -203,12 +204,21 @@ class Simulator:
             E, v = plan
             if s >= s_end - 1e-15:
                 return q, s_end, False
-            ds = min(self.max_step, s_end - s)
-            ok, q_new, trigger = self._try_step(q, s, ds, E, v, h0, dh)
+            rest = s_end - s
+            ds = min(self.max_step, rest)
+            tried = False
+            if ds < rest and (determined or self._determined(q, h, E)):
+                # E fixes the pose as a function of s and holds it with positive forces: it
+                # stays the active set until an event and the pose needs no integration, so
+                # one step may go to the end of the move (the check locates any event in it).
+                ok, q_new, trigger = self._try_step(q, s, rest, E, v, h0, dh, guard=True)
+                tried = ok or trigger[0] != "jam"
+                if tried:
+                    ds = rest
+            if not tried:
+                ok, q_new, trigger = self._try_step(q, s, ds, E, v, h0, dh)
             if ok:
                 if self._determined(q_new, h0 + (s + ds) * dh, E):
-                    # E fixes the pose and holds it with positive forces: it stays the active
-                    # set until an event, so the next step needs no new LP.
                     carry = (E, (q_new - q) / ds)
                 q, s = q_new, s + ds
                 banned = set()
@@ -368,9 +378,19 @@ class Simulator:
         ident = max(checks, key=checks.get)
         return checks[ident], ident
 
-    def _try_step(self, q, s, ds, E, v, h0, dh):
+    def _try_step(self, q, s, ds, E, v, h0, dh, guard=False):
+        """Newton step to ``s + ds`` and its consistency check: ``(ok, q_new, trigger)``.
+
+        With ``guard``, a Newton correction larger than half the predicted motion counts as a
+        failure (over a long step it may have found another root of the equations).
+        """
         h = h0 + (s + ds) * dh
-        q_new = self._newton(q + v * ds, h, E)
+        q_pred = q + v * ds
+        q_new = self._newton(q_pred, h, E)
+        if q_new is not None and guard:
+            move = np.abs((q_pred - q) / self._scale).max()
+            if np.abs((q_new - q_pred) / self._scale).max() > 0.5 * move + self.tol:
+                q_new = None
         if q_new is None:
             return False, None, ("jam", None)
         worst, ident = self._worst(self._check(q_new, h, E))
@@ -584,18 +604,16 @@ class Simulator:
         equilibrium (a position-controlled hand adds no preload, section 3.2)."""
         if not keys:
             return np.zeros(0)
-        from grasp_env import lp
-
         p, n, _ = _arrays(pl, keys)
         V = mech.V_ob(p, n, pl.com_W)
-        res = lp.solve(
-            np.ones(len(keys)), A_eq=V.T, b_eq=mech.gravity_wrench(self.scene), bounds=(0, None)
-        )
+        # min 1^T lam s.t. V^T lam = (0, W, 0), lam >= 0: the force LP with xi = -1, solved
+        # through its primal (min W v_y s.t. V v >= -1) by the same motion LP as the steps.
+        res = mech.motion_lp(V, -np.ones(len(keys)), self.weight, self.lp_solver)
         if res.status != "optimal":
             # held only to within the fall's tolerance: the closest non-negative forces
             lam, _ = nnls(V.T, mech.gravity_wrench(self.scene))
             return lam
-        return np.maximum(res.x, 0.0)
+        return np.maximum(res.forces, 0.0)
 
 
 def _event(trigger: tuple, s: float) -> Event:

@@ -53,6 +53,10 @@ HALF_PI = math.pi / 2
 EQ_RTOL = 1e-7
 #: Accuracy of poses compared with closed forms or with the same move cut into pieces.
 POSE_TOL = 1e-7
+#: At a fold (a jam where the active contacts' Jacobian turns singular) the pose moves as the
+#: square root of the hand's path parameter, so Newton's residual (1e-3 contact_tol) and the
+#: location of the fold leave errors of order sqrt(1e-12) in the pose.
+FOLD_POSE_TOL = 1e-5
 #: Room for floating-point rounding on top of contact_tol when penetration is measured.
 ROUNDING = 1e-14
 #: Increment cap for long randomised or single big moves. The default (10000) turns a
@@ -871,7 +875,10 @@ def test_one_move_equals_ten_through_events(
     assert one.jammed == ten.jammed
     np.testing.assert_allclose(one.hand, ten.hand, atol=1e-9)
     np.testing.assert_allclose(
-        one.object_pose, ten.object_pose, atol=POSE_TOL, err_msg=f"events {events_one}"
+        one.object_pose,
+        ten.object_pose,
+        atol=FOLD_POSE_TOL if one.jammed else POSE_TOL,
+        err_msg=f"events {events_one}",
     )
     assert contact_set(one) == contact_set(ten)
 
