@@ -1,0 +1,425 @@
+"""Compare the scripted planner, trained PPO agents and a random policy on fixed seeds.
+
+    python -m agents.evaluate [--models DIR ...] [--episodes N] [--out DIR] [--workers 2]
+
+Suites: ``bundled`` (every bundled scene, ``--bundled-episodes`` seeds each) and
+``heldout`` (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds
+that training never uses). Every policy meets the same scenes and seeds. Writes
+``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
+printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
+into ``--out``. See ``docs/training.md`` for the metrics.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import itertools
+import math
+import os
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+import gymnasium as gym
+import numpy as np
+
+import grasp_env
+from agents.train_ppo import MODEL_DIR, load_agent
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+
+#: First seed of the held-out shapes. Training seeds its envs with ``seed + rank`` and its
+#: evaluation env with ``seed + 1000`` (small seeds); these streams never meet them.
+HELDOUT_SEED = 1_000_000
+#: Env kwargs of the held-out suite: fig13's hand, a new random shape per seed.
+HELDOUT_KWARGS = {"scene": "fig13", "shape_randomizer": True}
+#: Env set-up of the baselines. The scripted planner moves the palm too; the random policy
+#: acts on the fingers only, as in the paper's set-up.
+SCRIPTED_KWARGS = {"palm_control": True, "start": "scene"}
+RANDOM_KWARGS = {"palm_control": False, "start": "scene"}
+#: Env kwargs that a suite sets and a policy's own set-up must not override.
+SUITE_KEYS = ("scene", "shape_randomizer")
+GIF_SCENE, GIF_SIZE, GIF_EVERY = "fig13", (320, 240), 2
+BOOTSTRAP_SAMPLES = 2000
+
+
+# ---------------------------------------------------------------------- policies
+@dataclass(frozen=True)
+class PolicySpec:
+    """A policy to evaluate: ``kind`` is "scripted", "random" or "ppo" (with ``model_dir``)."""
+
+    name: str
+    kind: str
+    env_kwargs: dict = field(default_factory=dict)
+    model_dir: str | None = None
+
+
+def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
+    """The spec of a trained model directory (its env set-up from its saved config)."""
+    _, _, name, entry = load_agent(model_dir)
+    kwargs = {k: v for k, v in entry.get("env_kwargs", {}).items() if k not in SUITE_KEYS}
+    return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir))
+
+
+def make_policy(spec: PolicySpec, env: gym.Env) -> tuple[Callable, Callable]:
+    """``(reset(obs, info, seed), act(obs))`` for a spec on an env."""
+    if spec.kind == "scripted":
+        from agents.scripted import ScriptedPolicy
+
+        policy = ScriptedPolicy(env)
+        return (lambda obs, info, seed: policy.reset(obs, info)), policy.act
+    if spec.kind == "random":
+        box = env.action_space
+        state = {}
+
+        def reset(obs, info, seed):
+            state["rng"] = np.random.default_rng(seed)
+
+        def act(obs):
+            return state["rng"].uniform(box.low, box.high).astype(np.float32)
+
+        return reset, act
+    model, norm, _, _ = load_agent(spec.model_dir)
+
+    def act(obs):
+        x = norm.normalize_obs(obs) if norm is not None else obs
+        return model.predict(x, deterministic=True)[0]
+
+    return (lambda obs, info, seed: None), act
+
+
+# ---------------------------------------------------------------------- episodes
+@dataclass
+class Episode:
+    """One evaluated episode; ``grip`` is y* and ``grip_W`` is y* / object weight."""
+
+    suite: str
+    scene: str
+    policy: str
+    seed: int
+    steps: int = 0
+    ret: float = 0.0
+    success: bool = False
+    reached: bool = False
+    steps_to_closure: float = math.nan
+    grip: float = math.nan
+    grip_W: float = math.nan
+    dropped: bool = False
+    jammed: bool = False
+    error: str = ""
+
+
+def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extra) -> gym.Env:
+    kwargs = {**spec.env_kwargs, **suite_kwargs, **extra}
+    if max_steps is not None:
+        kwargs["max_episode_steps"] = max_steps
+    return gym.make("FrictionlessGrasp-v0", **kwargs)
+
+
+def run_episode(
+    spec: PolicySpec, suite: str, scene: str, seed: int, max_steps: int | None, frames=None
+) -> Episode:
+    """Run one episode to its end; appends rendered frames to ``frames`` if given."""
+    suite_kwargs = HELDOUT_KWARGS if suite == "heldout" else {"scene": scene}
+    extra = {}
+    if frames is not None:
+        extra = {"render_mode": "rgb_array", "render_width": GIF_SIZE[0]}
+        extra["render_height"] = GIF_SIZE[1]
+    env = make_env(spec, suite_kwargs, max_steps, **extra)
+    ep = Episode(suite, scene, spec.name, seed)
+    try:
+        reset, act = make_policy(spec, env)
+        obs, info = env.reset(seed=seed)
+        reset(obs, info, seed)
+        while True:
+            if frames is not None and ep.steps % GIF_EVERY == 0:
+                frames.append(env.render())
+            obs, reward, terminated, truncated, info = env.step(act(obs))
+            ep.steps += 1
+            ep.ret += float(reward)
+            if info["is_success"] and not ep.reached:
+                ep.reached, ep.steps_to_closure = True, ep.steps
+            ep.dropped |= info["dropped"]
+            ep.jammed |= info["jammed"] and not info["form_closure"]
+            if "sim_error" in info:
+                ep.error = info["sim_error"]
+            if terminated or truncated:
+                break
+    except Exception as exc:  # a failing policy fails its episode, not the evaluation
+        ep.error = f"{type(exc).__name__}: {exc}"
+        print(f"{spec.name} on {scene} (seed {seed}): {ep.error}")
+        env.close()
+        return ep
+    if frames is not None:
+        frames.append(env.render())
+    ep.success = bool(info["is_success"])
+    if ep.success:
+        ep.grip = float(info["grip_force"])
+        ep.grip_W = float(obs[-2])  # y* / W (observation entry 22 + 3N)
+    env.close()
+    return ep
+
+
+def _run_job(job: tuple) -> Episode:
+    return run_episode(*job)
+
+
+# ---------------------------------------------------------------------- statistics
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score 95% interval of a success rate ``k / n``."""
+    if n == 0:
+        return math.nan, math.nan
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def bootstrap_mean(values: list[float], seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap 95% interval of the mean (nan, nan for no values)."""
+    x = np.asarray(values, dtype=float)
+    if len(x) == 0:
+        return math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    means = rng.choice(x, (BOOTSTRAP_SAMPLES, len(x))).mean(axis=1)
+    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+
+
+def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
+    """One row per (suite, policy): rates with Wilson CIs, means with bootstrap CIs.
+
+    Suites: the paper's scene alone (``fig13``), all bundled scenes, the held-out shapes.
+    """
+    rows = []
+    groups = {
+        GIF_SCENE: [e for e in episodes if e.suite == "bundled" and e.scene == GIF_SCENE],
+        "bundled": [e for e in episodes if e.suite == "bundled"],
+        "heldout": [e for e in episodes if e.suite == "heldout"],
+    }
+    policies = list(dict.fromkeys(e.policy for e in episodes))
+    for (suite, group), policy in itertools.product(groups.items(), policies):
+        eps = [e for e in group if e.policy == policy]
+        if not eps:
+            continue
+        n, k = len(eps), sum(e.success for e in eps)
+        grips = [e.grip_W for e in eps if e.success]
+        closure = [e.steps_to_closure for e in eps if e.reached]
+        lo, hi = wilson(k, n)
+        g_lo, g_hi = bootstrap_mean(grips)
+        s_lo, s_hi = bootstrap_mean(closure)
+        rows.append(
+            {
+                "suite": suite,
+                "policy": policy,
+                "episodes": n,
+                "success_rate": k / n,
+                "success_ci_low": lo,
+                "success_ci_high": hi,
+                "grip_W_mean": float(np.mean(grips)) if grips else math.nan,
+                "grip_W_std": float(np.std(grips)) if grips else math.nan,
+                "grip_W_ci_low": g_lo,
+                "grip_W_ci_high": g_hi,
+                "steps_to_closure_mean": float(np.mean(closure)) if closure else math.nan,
+                "steps_to_closure_ci_low": s_lo,
+                "steps_to_closure_ci_high": s_hi,
+                "drops": sum(e.dropped for e in eps),
+                "jams": sum(e.jammed for e in eps),
+                "errors": sum(bool(e.error) for e in eps),
+                "mean_return": float(np.mean([e.ret for e in eps])),
+            }
+        )
+    return rows
+
+
+def markdown_table(rows: list[dict[str, Any]]) -> str:
+    """The summary as a markdown table."""
+
+    def num(x: float, fmt: str = ".2f") -> str:
+        return "-" if math.isnan(x) else format(x, fmt)
+
+    lines = [
+        "| suite | policy | n | success (95% CI) | y*/W mean ± sd (95% CI) "
+        "| steps to closure (95% CI) | drops | jams | errors |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in rows:
+        success = (
+            f"{num(r['success_rate'])} ({num(r['success_ci_low'])}-{num(r['success_ci_high'])})"
+        )
+        grip = (
+            f"{num(r['grip_W_mean'])} ± {num(r['grip_W_std'])} "
+            f"({num(r['grip_W_ci_low'])}-{num(r['grip_W_ci_high'])})"
+        )
+        closure = (
+            f"{num(r['steps_to_closure_mean'], '.1f')} "
+            f"({num(r['steps_to_closure_ci_low'], '.1f')}-"
+            f"{num(r['steps_to_closure_ci_high'], '.1f')})"
+        )
+        lines.append(
+            f"| {r['suite']} | {r['policy']} | {r['episodes']} | {success} | {grip} | "
+            f"{closure} | {r['drops']} | {r['jams']} | {r['errors']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------- outputs
+def write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def bar_chart(path: Path, rows: list[dict[str, Any]]) -> None:
+    """Success rate and mean y*/W per suite and policy, with their 95% CIs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    suites = list(dict.fromkeys(r["suite"] for r in rows))
+    policies = list(dict.fromkeys(r["policy"] for r in rows))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    width = 0.8 / len(policies)
+    x = np.arange(len(suites))
+    panels = (("success_rate", "success", "success rate"), ("grip_W_mean", "grip_W", "y* / W"))
+    for ax, (key, ci, label) in zip(axes, panels, strict=True):
+        for i, policy in enumerate(policies):
+            by_suite = {r["suite"]: r for r in rows if r["policy"] == policy}
+            mean = np.array([by_suite.get(s, {}).get(key, math.nan) for s in suites], float)
+            lo = np.array([by_suite.get(s, {}).get(f"{ci}_ci_low", math.nan) for s in suites])
+            hi = np.array([by_suite.get(s, {}).get(f"{ci}_ci_high", math.nan) for s in suites])
+            err = np.nan_to_num(np.stack([mean - lo, hi - mean]).astype(float))
+            ax.bar(x + i * width, np.nan_to_num(mean), width, yerr=err, capsize=3, label=policy)
+        ax.set_xticks(x + width * (len(policies) - 1) / 2, suites)
+        ax.set_ylabel(label)
+    axes[0].set_ylim(0, 1.05)
+    axes[1].set_title("over successes (lower is better)")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def write_gif(path: Path, frames: list[np.ndarray], fps: int) -> None:
+    import imageio.v2 as imageio
+
+    imageio.mimsave(path, frames, duration=1000 * GIF_EVERY / fps, loop=0)
+
+
+# ---------------------------------------------------------------------- main
+def default_policies(model_dirs: list[str] | None) -> list[PolicySpec]:
+    """Scripted (when ``agents.scripted`` exists), the models, random."""
+    if model_dirs is None:
+        model_dirs = [str(p.parent) for p in sorted(MODEL_DIR.glob("*/model.zip"))]
+    specs = []
+    try:
+        import agents.scripted  # noqa: F401
+    except ImportError:
+        print("agents.scripted is not available: the scripted policy is left out")
+    else:
+        specs.append(PolicySpec("scripted", "scripted", SCRIPTED_KWARGS))
+    specs += [ppo_spec(d) for d in model_dirs]
+    specs.append(PolicySpec("random", "random", RANDOM_KWARGS))
+    return specs
+
+
+def evaluate(
+    specs: list[PolicySpec],
+    out: Path,
+    episodes: int,
+    bundled_episodes: int = 1,
+    scenes: list[str] | None = None,
+    max_steps: int | None = None,
+    workers: int = 1,
+) -> list[dict[str, Any]]:
+    """Run every policy on both suites, write every output into ``out``; returns the rows."""
+    out.mkdir(parents=True, exist_ok=True)
+    scenes = scenes if scenes is not None else grasp_env.bundled_scenes()
+    jobs = [
+        (spec, "bundled", scene, seed, max_steps)
+        for spec in specs
+        for scene in scenes
+        for seed in range(bundled_episodes)
+    ]
+    jobs += [
+        (spec, "heldout", f"shape_{HELDOUT_SEED + k}", HELDOUT_SEED + k, max_steps)
+        for spec in specs
+        for k in range(episodes)
+    ]
+    if workers > 1:
+        with ProcessPoolExecutor(workers, initializer=_one_thread) as pool:
+            results = list(pool.map(_run_job, jobs, chunksize=1))
+    else:
+        _one_thread()
+        results = [_run_job(job) for job in jobs]
+    write_csv(out / "episodes.csv", [asdict(e) for e in results])
+    rows = summarize(results)
+    write_csv(out / "summary.csv", rows)
+    table = markdown_table(rows)
+    (out / "summary.md").write_text(table)
+    bar_chart(out / "summary.png", rows)
+    for spec in specs:
+        frames: list[np.ndarray] = []
+        run_episode(spec, "bundled", GIF_SCENE, 0, max_steps, frames)
+        write_gif(out / f"{spec.name}.gif", frames, FrictionlessGraspEnv.metadata["render_fps"])
+    return rows
+
+
+def _one_thread() -> None:
+    import torch
+
+    torch.set_num_threads(1)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__)
+    parser.add_argument("--models", nargs="*", help="model directories (default: agents/models/*)")
+    parser.add_argument("--episodes", type=_positive_int, default=20, help="held-out shapes")
+    parser.add_argument("--bundled-episodes", type=_positive_int, default=1, help="per scene")
+    parser.add_argument("--scenes", nargs="+", help="bundled scenes (default: all)")
+    parser.add_argument("--max-steps", type=_positive_int, help="episode length (default 200)")
+    parser.add_argument("--workers", type=_positive_int, default=1, help="processes")
+    parser.add_argument("--out", default="runs/evaluation", help="output directory")
+    parser.add_argument("--no-scripted", action="store_true", help="leave the planner out")
+    args = parser.parse_args(argv)
+    try:
+        specs = default_policies(args.models)
+    except ValueError as exc:
+        parser.error(str(exc))
+    if args.no_scripted:
+        specs = [s for s in specs if s.kind != "scripted"]
+    known = grasp_env.bundled_scenes()
+    for scene in args.scenes or []:
+        if scene not in known:
+            parser.error(f"--scenes {scene!r} is not a bundled scene; choose from {known}")
+    rows = evaluate(
+        specs,
+        Path(args.out),
+        args.episodes,
+        args.bundled_episodes,
+        args.scenes,
+        args.max_steps,
+        args.workers,
+    )
+    print(markdown_table(rows), end="")
+    print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")
+
+
+if __name__ == "__main__":
+    main()
