@@ -16,7 +16,6 @@ Normals always point into the object; gaps are positive when the bodies are apar
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import numpy as np
@@ -297,3 +296,25 @@ def min_gap(
             if (body, TIP, int(j)) not in exclude:
                 worst, worst_key = float(inside[j]), (body, TIP, int(np.argmax(g[j])), int(j))
     return worst, worst_key
+
+
+def max_overlap(pl: Placement, bodies: list[int]) -> tuple[float, int | None]:
+    """Deepest overlap of the object with a hand body in ``bodies`` (separating-axis test).
+
+    Catches what :func:`min_gap` cannot: convex polygons whose edges cross with no vertex of
+    either inside the other (a sharp corner pushed through a thin finger). Returns
+    ``(depth, body)``: the largest over the bodies of the smallest overlap along the two
+    polygons' edge normals (<= 0 when apart: minus the separation along the best axis).
+    """
+    worst, worst_body = -np.inf, None
+    obj, obj_n = pl.obj_W, pl.obj_n_W
+    for body in bodies:
+        if body == geo.SUPPORT:
+            continue
+        poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
+        g = ((obj[:, None, :] - poly[None]) * n[None]).sum(-1)  # object vertex k, hand edge j
+        g2 = ((poly[:, None, :] - obj[None]) * obj_n[None]).sum(-1)  # hand vertex j, edge k
+        depth = -max(g.min(axis=0).max(), g2.min(axis=0).max())
+        if depth > worst:
+            worst, worst_body = float(depth), body
+    return worst, worst_body

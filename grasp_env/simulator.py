@@ -175,7 +175,11 @@ class Simulator:
         banned: set = set()
         if not np.any(dh) or s_end <= 0.0:
             return self._fall_if_needed(q, h0, 0.0, events), 0.0, False
+        # Events closer than contact_tol along the hand's path count as here (no progress).
+        reach = np.abs(dh[:2]).sum() + np.abs(dh[2:]).sum() * self.scene.palm.width
+        s_eps = max(1e-13, self.tol / reach)
         stuck_fall = False
+        losing = None  # (E, v) of a plan dropped for a negative force at this s
         carry = None  # (E, v) kept from an accepted step whose active set stays valid
         for _ in range(self.max_iterations):
             h = h0 + s * dh
@@ -221,24 +225,39 @@ class Simulator:
                 if self._determined(q_new, h0 + (s + ds) * dh, E):
                     carry = (E, (q_new - q) / ds)
                 q, s = q_new, s + ds
-                banned = set()
+                banned, losing = set(), None
                 continue
             s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
-            if s_star - s < 1e-13:
+            if s_star - s < s_eps:
                 key = event.contacts[0] if event.contacts else None
                 if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and key is not None:
                     if key not in banned:
                         # The offending contact cannot stay active here: plan without it.
                         banned.add(key)
+                        if event.kind == "lost_contact":
+                            losing = (E, v)
                         continue
-                if event.kind == "lost_contact":
+                reverted = False
+                if event.kind == "new_contact" and key is not None and key not in E:
+                    # A touching contact the plan left open closes at once (the object held
+                    # by the others is pushed into it), while keeping it makes its force
+                    # negative: the object sits at an equilibrium that the hand's motion
+                    # destroys (a potential maximum along the other contacts' family). The
+                    # plan's velocity keeps every touching contact closed (V v >= xi).
+                    if key in banned and losing is not None:
+                        (E, v), reverted = losing, True
+                    elif key not in banned:
+                        pl = ct.Placement(self.scene, q, h0 + s * dh)
+                        if key in ct.detect(pl, self.tol):
+                            E, reverted = [*E, key], True
+                if event.kind == "lost_contact" or reverted:
                     # The object sits on the boundary of equilibrium: just ahead, no contact
                     # set holds it. Nudge the hand past the boundary and let the object fall.
                     nudged = self._nudge(q, s, E, v, h0, dh, s_end)
                     if nudged is not None:
                         s, q = nudged
                         q = self._fall(q, h0 + s * dh, s, events)
-                        banned = set()
+                        banned, losing = set(), None
                         continue
                 # Nothing consistent lies just ahead: the active contacts' equations fold
                 # (their normals turn concurrent and the forces needed grow without bound) or
@@ -246,13 +265,13 @@ class Simulator:
                 # contacts left cannot hold the object, which then falls first.
                 q_fallen = self._fall_if_unheld(q, h0 + s * dh, s, events)
                 if q_fallen is not None:
-                    q, banned = q_fallen, set()
+                    q, banned, losing = q_fallen, set(), None
                     continue
                 events.append(Event("jam", s, tuple(E)))
                 return q, s, True
             events.append(Event(event.kind, s_star, event.contacts))
             q, s = q_star, s_star
-            banned = set()
+            banned, losing = set(), None
         raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
 
     def _plan(self, pl: ct.Placement, keys: list, h: np.ndarray, dh: np.ndarray, allow_fall=True):
@@ -312,12 +331,7 @@ class Simulator:
             return q
         last = np.inf
         for _ in range(30):
-            pl = ct.Placement(self.scene, q, h)
-            F = np.empty(len(E))
-            P = np.empty((len(E), 2))
-            N = np.empty((len(E), 2))
-            for i, key in enumerate(E):
-                P[i], N[i], F[i], _, _ = pl.evaluate(key)
+            P, N, F = self._gaps(q, h, E)
             res = np.abs(F).max()
             if res <= self.newton_tol:
                 return q
@@ -335,6 +349,71 @@ class Simulator:
                 return None
         return None
 
+    def _solve_pose(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
+        """The object pose on the path with active set ``E``: held by ``E`` in equilibrium."""
+        if 0 < len(E) < 3:
+            q = self._newton_held(q0, h, E)
+            if q is not None:
+                return q
+        return self._newton(q0, h, E)
+
+    def _newton_held(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
+        """Pose held by fewer than three contacts: solve ``phi_E(q, h) = 0`` together with the
+        object's equilibrium ``W_E(q) lam = w`` (the KKT conditions of the least potential
+        energy on the contacts' family of poses); None if Newton fails.
+
+        With ``|E| < 3`` the gap equations leave the object ``3 - |E|`` free directions, and
+        quasi-static motion keeps it at the potential's minimum along them; the equilibrium
+        equations close the system (unknowns ``q`` and ``lam``, ``|E| + 3`` equations). The
+        Jacobian is exact: an edge contact's wrench ``(n, r x n)`` turns with the object only
+        through ``r`` (``d(r x n)/dtheta = -r . n``), a tip contact's through its normal
+        (``dn/dtheta = k x n``, ``d(r x n)/d(x, y) = (-n_y, n_x)``, ``d(r x n)/dtheta = r . n``).
+        """
+        m = len(E)
+        rows = np.array([1.0, 1.0, 1.0 / self.rho])  # force, force, moment / rho
+        g = mech.gravity_wrench(self.scene) / self.weight
+        tip = np.array([k[1] == ct.TIP for k in E])
+        q = q0.copy()
+        lam = None
+        for _ in range(30):
+            P, N, F = self._gaps(q, h, E)
+            r = P - q[:2]
+            W = mech.V_ob(P, N, q[:2]).T  # (3, m) wrench columns
+            if lam is None:
+                lam, *_ = np.linalg.lstsq(W, g, rcond=None)
+            eq = (W @ lam - g) * rows
+            if np.abs(F).max() <= self.newton_tol and np.abs(eq).max() <= 1e-12:
+                return q
+            rn = (r * N).sum(axis=1)
+            dW = np.zeros((m, 3, 3))  # dW[i, :, k] = d w_i / d q_k
+            dW[~tip, 2, 2] = -rn[~tip]
+            dW[tip, 2, 0], dW[tip, 2, 1] = -N[tip, 1], N[tip, 0]
+            dW[tip, 0, 2], dW[tip, 1, 2], dW[tip, 2, 2] = -N[tip, 1], N[tip, 0], rn[tip]
+            J = np.zeros((m + 3, 3 + m))
+            J[:m, :3] = W.T * self._scale
+            J[m:, :3] = np.einsum("i,ijk->jk", lam, dW) * self._scale * rows[:, None]
+            J[m:, 3:] = W * rows[:, None]
+            try:
+                dz = np.linalg.solve(J, -np.concatenate((F, eq)))
+            except np.linalg.LinAlgError:
+                return None
+            du = dz[:3]
+            if not np.all(np.isfinite(dz)) or np.abs(du).max() > self.size:
+                return None
+            q = q + du * self._scale
+            lam = lam + dz[3:]
+        return None
+
+    def _gaps(self, q: np.ndarray, h: np.ndarray, E: list):
+        """Points, normals and gaps of the contacts ``E`` at ``(q, h)``."""
+        pl = ct.Placement(self.scene, q, h)
+        F = np.empty(len(E))
+        P = np.empty((len(E), 2))
+        N = np.empty((len(E), 2))
+        for i, key in enumerate(E):
+            P[i], N[i], F[i], _, _ = pl.evaluate(key)
+        return P, N, F
+
     # ------------------------------------------------------------------ consistency
     def _check(self, q: np.ndarray, h: np.ndarray, E: list) -> dict:
         """Signed violations of the active set ``E`` at ``(q, h)``, in length units.
@@ -348,10 +427,14 @@ class Simulator:
         """
         pl = ct.Placement(self.scene, q, h)
         exclude = {ct.vertex_of(k) for k in E}
-        gap, key = ct.min_gap(pl, exclude, ct.broad_phase(pl, 0.05 * self.size + self.tol))
+        near = ct.broad_phase(pl, 0.05 * self.size + self.tol)
+        gap, key = ct.min_gap(pl, exclude, near)
         out = {}
         if key is not None:
             out[("new_contact", key)] = -gap
+        depth, body = ct.max_overlap(pl, near)
+        if body is not None:
+            out[("overlap", body)] = depth
         P = np.empty((len(E), 2))
         N = np.empty((len(E), 2))
         for i, k in enumerate(E):
@@ -386,7 +469,7 @@ class Simulator:
         """
         h = h0 + (s + ds) * dh
         q_pred = q + v * ds
-        q_new = self._newton(q_pred, h, E)
+        q_new = self._solve_pose(q_pred, h, E)
         if q_new is not None and guard:
             move = np.abs((q_pred - q) / self._scale).max()
             if np.abs((q_new - q_pred) / self._scale).max() > 0.5 * move + self.tol:
@@ -409,7 +492,7 @@ class Simulator:
             if mid <= s_lo or mid >= s_hi:
                 break
             h = h0 + mid * dh
-            q_mid = self._newton(q_lo + v * (mid - s_lo), h, E)
+            q_mid = self._solve_pose(q_lo + v * (mid - s_lo), h, E)
             if q_mid is None:
                 s_hi, trigger = mid, ("jam", None)
                 continue
@@ -502,7 +585,7 @@ class Simulator:
             choices = list(_choices(pl, keys, self.tol))
             if len(choices) > 1:
                 choices.append(keys)
-            best = None
+            best, best_event = None, False
             for choice in choices:
                 a, E = self._descent(pl, choice)
                 if np.linalg.norm(a) < 1e-9:
@@ -510,13 +593,15 @@ class Simulator:
                 # backtracking: near a stable rest (a cradle) a full step overshoots
                 d = a * self._scale / np.linalg.norm(a) * self.fall_step
                 for _ in range(50):
-                    q_new = self._fall_step(q, h, E, d)
+                    q_new, at_event = self._fall_step(q, h, E, d)
                     if q_new[1] < q[1] - 1e-12 * self.size:
                         break
                     d = 0.5 * d
                 if best is None or q_new[1] < best[1]:
-                    best = q_new
-            if best is None or best[1] > q[1] - 1e-9 * self.size:
+                    best, best_event = q_new, at_event
+            # A step that ends on an event (a new contact, an edge's end) changes the contacts
+            # for the next step however short it is; otherwise a negligible drop means rest.
+            if best is None or best[1] > q[1] - (0.0 if best_event else 1e-9 * self.size):
                 # no admissible descent lowers the object: it is held
                 events.append(Event("fall_end", s, tuple(keys)))
                 return q
@@ -537,8 +622,11 @@ class Simulator:
         tight = (Cs @ a) <= 1e-10
         return a, [k for k, t in zip(keys, tight, strict=True) if t]
 
-    def _fall_step(self, q: np.ndarray, h: np.ndarray, E: list, d: np.ndarray) -> np.ndarray:
-        """One fall step of at most ``d``, shortened to the first new contact or edge end."""
+    def _fall_step(self, q: np.ndarray, h: np.ndarray, E: list, d: np.ndarray):
+        """One fall step of at most ``d``, shortened to the first new contact or edge end.
+
+        Returns ``(q_new, at_event)``: ``at_event`` when the step was shortened to an event.
+        """
 
         def at(frac: float) -> np.ndarray | None:
             return self._newton(q + frac * d, h, E)
@@ -546,7 +634,7 @@ class Simulator:
         q1 = at(1.0)
         if q1 is not None:
             if self._geometry_violation(q1, h, E) <= self.tol:
-                return q1
+                return q1, False
         lo, hi, q_lo = 0.0, 1.0, q
         for _ in range(200):
             mid = 0.5 * (lo + hi)
@@ -558,17 +646,17 @@ class Simulator:
             if worst > self.tol:
                 hi = mid
             elif worst >= -self.tol:
-                return q_mid
+                return q_mid, True
             else:
                 lo, q_lo = mid, q_mid
             if hi - lo < 1e-16:
                 break
-        return q_lo
+        return q_lo, True
 
     def _geometry_violation(self, q, h, E) -> float:
         pl = ct.Placement(self.scene, q, h)
         gap, _ = ct.min_gap(pl, {ct.vertex_of(k) for k in E})
-        worst = -gap
+        worst = max(-gap, ct.max_overlap(pl, (1, 2, 3))[0])
         for k in E:
             _, _, _, t, L = pl.evaluate(k)
             if np.isfinite(L):
@@ -620,6 +708,8 @@ def _event(trigger: tuple, s: float) -> Event:
     kind, key = trigger
     if kind == "equilibrium":
         kind = "lost_contact"
+    if kind == "overlap":  # edges about to cross: a new contact (vertex-vertex)
+        kind, key = "new_contact", None
     return Event(kind, s, (key,) if key is not None else ())
 
 
