@@ -1,0 +1,122 @@
+"""Shared helpers of the benchmark suite: machine description, timing and markdown output."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import platform
+import signal
+import statistics
+import subprocess
+import time
+from collections.abc import Callable, Sequence
+from importlib import metadata
+from pathlib import Path
+
+#: Default folder of the markdown results.
+RESULTS = Path(__file__).resolve().parent / "results"
+REPO = Path(__file__).resolve().parent.parent
+
+
+def headless() -> None:
+    """Keep pygame (imported by renderers) off any display or sound device."""
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+
+def cpu_model() -> str:
+    """The CPU model name from ``/proc/cpuinfo`` (or what ``platform`` knows)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _version(dist: str) -> str:
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return "absent"
+
+
+def git_commit() -> str:
+    """Commit of the ``grasp_env`` being measured (``+dirty`` with local changes), or its path
+    when it is imported from outside a git work tree (e.g. an exported commit)."""
+    import grasp_env
+
+    src = Path(grasp_env.__file__).resolve().parent.parent
+
+    def git(*args: str) -> str:
+        out = subprocess.run(["git", *args], cwd=src, capture_output=True, text=True, check=True)
+        return out.stdout.strip()
+
+    try:
+        if Path(git("rev-parse", "--show-toplevel")).resolve() != src:
+            return f"{src} (not a git work tree)"
+        dirty = git("status", "--porcelain", "--", "grasp_env")
+        return git("rev-parse", "--short", "HEAD") + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return f"{src} (not a git work tree)"
+
+
+def machine_line() -> str:
+    """One markdown line naming the machine, software versions, commit, time and load."""
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    versions = ", ".join(
+        f"{name} {_version(name)}" for name in ("numpy", "scipy", "gymnasium", "box2d")
+    )
+    return (
+        f"Machine: {cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"{versions}; grasp_env at {git_commit()}; "
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; load average {load}."
+    )
+
+
+def table(header: Sequence[str], rows: Sequence[Sequence[object]], align: str = "") -> list[str]:
+    """A markdown table; ``align`` gives one of ``l``/``r`` per column (default: left, right...)."""
+    align = align or "l" + "r" * (len(header) - 1)
+    rule = {"l": ":---", "r": "---:", "c": ":---:"}
+    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(rule[a] for a in align) + " |"]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return lines
+
+
+def write(path: Path, title: str, body: Sequence[str]) -> Path:
+    """Write a results page: title, machine line, then ``body`` lines."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join([f"# {title}", "", machine_line(), "", *body]) + "\n")
+    print(f"wrote {path}")
+    return path
+
+
+def median_time(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
+    """Median wall time of ``repeat`` calls of ``fn`` (seconds) and the last call's result."""
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+class BudgetExceeded(Exception):
+    """A benchmarked call ran past its time limit."""
+
+
+@contextlib.contextmanager
+def time_limit(seconds: float):
+    """Raise :class:`BudgetExceeded` in the main thread if the block runs over ``seconds``."""
+
+    def _alarm(signum, frame):
+        raise BudgetExceeded(f"over {seconds:g} s")
+
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)

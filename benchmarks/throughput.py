@@ -1,0 +1,199 @@
+"""Env throughput: steps/s of ``FrictionlessGrasp-v0`` against Gymnasium baselines, same run.
+
+One process, ``render_mode=None``. Random actions are drawn in bulk from a seeded
+``numpy.random.Generator`` (``Box.sample`` alone costs about 13 us). Each round runs every
+env for ``budget`` seconds of stepping (resets included, env construction excluded), in a
+rotated order so that load changes on a shared machine spread over all envs. Reported: the
+median steps/s over rounds, and the median over rounds of the per-round ratio to each
+baseline. The scripted policy (``agents.scripted.ScriptedPolicy``) runs when it exists.
+
+Usage: ``python -m benchmarks.throughput [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
+from benchmarks.common import RESULTS, headless, table, write
+
+BASELINES = ("LunarLander-v3", "CartPole-v1")
+ACTION_BLOCK = 4096  #: random actions drawn per call to the generator
+
+
+class RandomActions:
+    """Uniform random actions of a Box or Discrete space, drawn in blocks from a Generator."""
+
+    def __init__(self, space: gym.Space, seed: int) -> None:
+        self.space, self.rng = space, np.random.default_rng(seed)
+        self.block, self.i = self._draw(), 0
+
+    def _draw(self) -> np.ndarray:
+        if isinstance(self.space, spaces.Discrete):
+            return self.rng.integers(self.space.n, size=ACTION_BLOCK) + self.space.start
+        shape = (ACTION_BLOCK, *self.space.shape)
+        low, high = self.space.low, self.space.high
+        return self.rng.uniform(low, high, shape).astype(self.space.dtype)
+
+    def act(self, obs: Any) -> Any:
+        if self.i == ACTION_BLOCK:
+            self.block, self.i = self._draw(), 0
+        self.i += 1
+        return self.block[self.i - 1]
+
+    def reset(self, obs: Any, info: dict) -> None:
+        """Random actions ignore the episode start."""
+
+
+@dataclass
+class Runner:
+    """An env and a policy stepped for a time budget; its counts carry over between rounds."""
+
+    name: str
+    env: gym.Env
+    policy: Any
+    rates: list[float] = field(default_factory=list)
+    steps: int = 0
+    episodes: int = 0
+
+    def __post_init__(self) -> None:
+        self.obs, info = self.env.reset(seed=0)
+        self.policy.reset(self.obs, info)
+
+    def run(self, budget: float) -> float:
+        """Step for ``budget`` seconds; return and record steps/s."""
+        env, policy, obs = self.env, self.policy, self.obs
+        n, t0 = 0, time.perf_counter()
+        end = t0 + budget
+        while True:
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            n += 1
+            if terminated or truncated:
+                obs, info = env.reset()
+                policy.reset(obs, info)
+                self.episodes += 1
+            if n % 8 == 0 and time.perf_counter() >= end:
+                break
+        rate = n / (time.perf_counter() - t0)
+        self.obs, self.steps = obs, self.steps + n
+        self.rates.append(rate)
+        return rate
+
+
+def scripted_runner() -> tuple[Runner | None, str]:
+    """The scripted policy on ``start="preliftoff"``, or None and the reason it is absent."""
+    try:
+        from agents.scripted import ScriptedPolicy
+    except ImportError as exc:
+        return None, f"scripted policy absent ({exc})"
+    errors = []
+    for kwargs in ({"start": "preliftoff"}, {"start": "preliftoff", "palm_control": True}):
+        env = gym.make("FrictionlessGrasp-v0", **kwargs)
+        try:
+            args = ", ".join(f"{k}={v!r}" for k, v in kwargs.items())
+            return Runner(f"FrictionlessGrasp-v0 scripted ({args})", env, ScriptedPolicy(env)), ""
+        except Exception as exc:  # a policy under construction: report, do not fail the suite
+            errors.append(f"{kwargs}: {type(exc).__name__}: {exc}")
+            env.close()
+    return None, "scripted policy failed: " + "; ".join(errors)
+
+
+def make_runners() -> tuple[list[Runner], list[str]]:
+    """Our env configurations, the scripted policy and the baselines that can be built."""
+    notes = []
+    ours: list[tuple[str, Callable[[], gym.Env]]] = [
+        ("FrictionlessGrasp-v0 (default)", lambda: gym.make("FrictionlessGrasp-v0")),
+        (
+            "FrictionlessGrasp-v0 (palm_control=True)",
+            lambda: gym.make("FrictionlessGrasp-v0", palm_control=True),
+        ),
+    ]
+    ours += [(name, lambda name=name: gym.make(name)) for name in BASELINES]
+    runners = []
+    for i, (name, make) in enumerate(ours):
+        try:
+            env = make()
+        except gym.error.DependencyNotInstalled as exc:
+            notes.append(f"{name} skipped: {exc}")
+            continue
+        runners.append(Runner(name, env, RandomActions(env.action_space, seed=i)))
+    scripted, note = scripted_runner()
+    if scripted is None:
+        notes.append(note)
+    else:
+        runners.insert(2, scripted)
+    return runners, notes
+
+
+def run(
+    quick: bool = False,
+    out: Path = RESULTS / "throughput.md",
+    budget: float | None = None,
+    rounds: int | None = None,
+) -> Path:
+    """Run the throughput benchmark and write its markdown page."""
+    headless()
+    budget = budget if budget is not None else (1.0 if quick else 5.0)
+    rounds = rounds if rounds is not None else (2 if quick else 5)
+    runners, notes = make_runners()
+    for r in range(rounds):
+        k = r % len(runners)
+        for runner in runners[k:] + runners[:k]:
+            rate = runner.run(budget)
+            print(f"round {r}: {runner.name}: {rate:,.0f} steps/s")
+    base = {b.name: b for b in runners if b.name in BASELINES}
+    header = ["env / policy", "steps/s (median)", "us/step", "steps", "episodes"]
+    header += [f"ratio to {name}" for name in base]
+    rows = []
+    for runner in runners:
+        rate = statistics.median(runner.rates)
+        row = [runner.name, f"{rate:,.0f}", f"{1e6 / rate:,.1f}", runner.steps, runner.episodes]
+        for b in base.values():
+            ratios = [x / y for x, y in zip(runner.rates, b.rates, strict=True)]
+            row.append(f"{statistics.median(ratios):.4f}")
+        rows.append(row)
+        runner.env.close()
+    target = ""
+    if "LunarLander-v3" in base:
+        lunar = statistics.median(base["LunarLander-v3"].rates)
+        ours = statistics.median(runners[0].rates)
+        target = (
+            f"Target (issue 7): random-action steps/s >= LunarLander-v3: "
+            f"{ours / lunar:.3f} of it ({'met' if ours >= lunar else 'not met'})."
+        )
+    body = [
+        f"{rounds} rounds x {budget:g} s per env, rotated order; random actions from a "
+        "seeded Generator in blocks; `render_mode=None`; resets inside the timing; ratios "
+        "are medians of per-round ratios.",
+        "",
+        *table(header, rows),
+        "",
+        target,
+        *[f"* {note}" for note in notes],
+    ]
+    return write(out, "Env throughput (single process)", body)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="2 rounds of 1 s per env")
+    ap.add_argument("--budget", type=float, help="seconds per env per round")
+    ap.add_argument("--rounds", type=int)
+    ap.add_argument("--out", type=Path, default=RESULTS / "throughput.md")
+    args = ap.parse_args(argv)
+    run(args.quick, args.out, args.budget, args.rounds)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
