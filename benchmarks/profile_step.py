@@ -1,0 +1,240 @@
+"""Where the time of one env step goes: a cProfile of random-action steps, by category.
+
+Every profiled function's own time (cProfile ``tottime``) is charged to the nearest
+categorised function on its call path: a function matching a rule in :data:`PHASES` is its
+own category; any other function (numpy, scipy, helpers) is charged to its callers, split in
+proportion to the time spent under each caller. So "Newton" includes the ``lstsq`` calls
+made by ``Simulator._newton``, and "LP solve" the basis enumeration or HiGHS however it is
+reached, except where a nearer category (y*, rest forces) calls it.
+
+cProfile slows Python-heavy code: the page gives the unprofiled us/step of the same run
+beside the profiled total. ``profile.json`` keeps the numbers; ``--baseline`` with an older
+``profile.json`` adds before/after columns.
+
+Usage: ``python -m benchmarks.profile_step [--quick] [--baseline old.json]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import pstats
+import re
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import gymnasium as gym
+
+import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
+from benchmarks.common import RESULTS, git_commit, headless, machine_line, table
+from benchmarks.throughput import RandomActions
+
+#: ``(category, file regex, function-name regex)``; the first rule that matches wins.
+PHASES: list[tuple[str, str, str]] = [
+    ("info dict", r"frictionless_grasp\.py$|grasp_env/contacts\.py$", r"_info|as_dict"),
+    ("y* (grip objective)", r"grasp_env/mechanics\.py$", r"^grip_objective$"),
+    ("form closure test", r"grasp_env/(mechanics|fastlp)\.py$", r"form_closure"),
+    ("LP solve (fastlp / HiGHS)", r"grasp_env/(fastlp|lp)\.py$", r""),
+    ("least-norm QP", r"grasp_env/qp\.py$", r""),
+    ("Newton", r"grasp_env/simulator\.py$", r"newton"),
+    ("support limit", r"grasp_env/(simulator|kinematics)\.py$", r"support_limit|lowest"),
+    (
+        "active-set LP setup (V, xi, choices)",
+        r"grasp_env/simulator\.py$",
+        r"_plan|_solve_lp|_choices",
+    ),
+    ("event locate (bisection)", r"grasp_env/simulator\.py$", r"_locate|_nudge"),
+    ("falls / hold tests", r"grasp_env/simulator\.py$", r"fall|_held|_descent|_geometry_violation"),
+    ("rest forces", r"grasp_env/simulator\.py$", r"_rest_forces"),
+    ("make_state", r"grasp_env/simulator\.py$", r"_make_state"),
+    ("consistency check (equilibrium, edge ends)", r"grasp_env/simulator\.py$", r"_check|_worst"),
+    ("determined-set test", r"grasp_env/simulator\.py$", r"_determined"),
+    (
+        "contact detection (gaps, broad phase)",
+        r"grasp_env/contacts\.py$",
+        r"detect|gap|broad_phase|_locally_valid|overlap",
+    ),
+    (
+        "placement (world poses, contact evaluate)",
+        r"grasp_env/(contacts|kinematics|geometry)\.py$",
+        r"",
+    ),
+    ("simulator loop (move_hand, _advance, _try_step)", r"grasp_env/simulator\.py$", r""),
+    ("observation", r"frictionless_grasp\.py$", r"_get_obs|_in_palm_frame"),
+    ("reward", r"frictionless_grasp\.py$", r"_get_rew|_potential"),
+    ("reset (episode starts)", r"frictionless_grasp\.py$", r"^reset$|_preliftoff|_perturb"),
+    ("env step (action check, analysis)", r"frictionless_grasp\.py$", r""),
+    ("gymnasium wrappers", r"gymnasium/", r""),
+    ("benchmark loop", r"benchmarks/", r""),
+]
+_RULES = [(name, re.compile(f), re.compile(fn)) for name, f, fn in PHASES]
+OTHER = "other (uncharged)"
+
+
+def _own_category(func: tuple[str, int, str]) -> str | None:
+    path, _, name = func
+    path = path.replace("\\", "/")
+    for category, file_re, name_re in _RULES:
+        if file_re.search(path) and name_re.search(name):
+            return category
+    return None
+
+
+def categorise(stats: dict) -> dict[str, float]:
+    """Seconds of own time per category, from ``pstats.Stats(...).stats``."""
+    memo: dict = {}
+
+    def shares(func, seen: frozenset) -> dict[str, float]:
+        if func in memo:
+            return memo[func]
+        own = _own_category(func)
+        if own is not None:
+            out = {own: 1.0}
+        else:
+            callers = stats[func][4] if func in stats else {}
+            weights = {c: edge[3] for c, edge in callers.items() if c not in seen}
+            total = sum(weights.values())
+            if total <= 0.0:
+                out = {OTHER: 1.0}
+            else:
+                out = defaultdict(float)
+                for caller, wgt in weights.items():
+                    for cat, frac in shares(caller, seen | {func}).items():
+                        out[cat] += frac * wgt / total
+                out = dict(out)
+        memo[func] = out
+        return out
+
+    seconds: dict[str, float] = defaultdict(float)
+    for func, (_, _, tt, _, _) in stats.items():
+        for cat, frac in shares(func, frozenset()).items():
+            seconds[cat] += tt * frac
+    return dict(seconds)
+
+
+def _step_loop(env: gym.Env, policy: RandomActions, steps: int) -> None:
+    obs, _ = env.reset(seed=0)
+    for _ in range(steps):
+        obs, _, terminated, truncated, _ = env.step(policy.act(obs))
+        if terminated or truncated:
+            obs, _ = env.reset()
+
+
+def profile_config(kwargs: dict, steps: int) -> dict:
+    """Unprofiled and profiled us/step of random-action steps, and us/step per category."""
+    env = gym.make("FrictionlessGrasp-v0", **kwargs)
+    t0 = time.perf_counter()
+    _step_loop(env, RandomActions(env.action_space, seed=0), steps)
+    plain = (time.perf_counter() - t0) / steps
+    prof = cProfile.Profile()
+    prof.enable()
+    _step_loop(env, RandomActions(env.action_space, seed=0), steps)
+    prof.disable()
+    env.close()
+    stats = pstats.Stats(prof).stats
+    seconds = categorise(stats)
+    top = sorted(stats.items(), key=lambda kv: -kv[1][2])[:12]
+    return {
+        "kwargs": kwargs,
+        "steps": steps,
+        "plain_us": plain * 1e6,
+        "profiled_us": sum(seconds.values()) / steps * 1e6,
+        "categories": {k: v / steps * 1e6 for k, v in seconds.items()},
+        "top": [
+            (f"{Path(f[0]).name}:{f[1]}({f[2]})", s[1] / steps, s[2] / steps * 1e6) for f, s in top
+        ],
+    }
+
+
+def _section(name: str, res: dict, before: dict | None) -> list[str]:
+    cats = sorted(res["categories"].items(), key=lambda kv: -kv[1])
+    total = res["profiled_us"]
+    header = ["category", "% of step", "us/step (profiled)"]
+    rows = []
+    if before is not None:
+        header += ["before us/step", "after / before"]
+    for cat, us in cats:
+        row = [cat, f"{100 * us / total:.1f}", f"{us:,.0f}"]
+        if before is not None:
+            old = before["categories"].get(cat, 0.0)
+            row += [f"{old:,.0f}", f"{us / old:.2f}" if old > 0 else "new"]
+        rows.append(row)
+    total_row = ["**total**", "100.0", f"**{total:,.0f}**"]
+    if before is not None:
+        old_total = before["profiled_us"]
+        total_row += [f"{old_total:,.0f}", f"{total / old_total:.2f}"]
+    rows.append(total_row)
+    plain = f"Unprofiled: **{res['plain_us']:,.0f} us/step** ({1e6 / res['plain_us']:,.0f} steps/s)"
+    if before is not None:
+        plain += f"; before: {before['plain_us']:,.0f} us/step"
+    return [
+        f"## {name}: `{res['kwargs'] or 'default kwargs'}`, {res['steps']} random-action steps",
+        "",
+        plain + f"; profiled: {total:,.0f} us/step.",
+        "",
+        *table(header, rows),
+        "",
+        "Top functions by own time:",
+        "",
+        *table(
+            ["function", "calls/step", "own us/step"],
+            [(f"`{n}`", f"{c:.1f}", f"{us:,.0f}") for n, c, us in res["top"]],
+        ),
+        "",
+    ]
+
+
+CONFIGS = {"default": {}, "palm_control": {"palm_control": True}}
+
+
+def run(
+    quick: bool = False,
+    out: Path = RESULTS / "profile.md",
+    steps: int | None = None,
+    baseline: Path | None = None,
+) -> Path:
+    """Profile both env configurations and write ``profile.md`` and ``profile.json``."""
+    headless()
+    steps = steps or (40 if quick else 400)
+    before = json.loads(baseline.read_text()) if baseline else {}
+    results = {}
+    for name, kwargs in CONFIGS.items():
+        results[name] = profile_config(kwargs, steps)
+        print(f"{name}: {results[name]['plain_us']:,.0f} us/step unprofiled")
+    stamp = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    record = {"commit": git_commit(), "time": stamp, **results}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(record, indent=1))
+    lines = [
+        "# Profile of one env step",
+        "",
+        machine_line(),
+        "",
+        f"Commit {record['commit']}, {stamp}."
+        + (f" Before: {before.get('commit')}, {before.get('time')}." if before else ""),
+        "Own time of each function charged to its nearest categorised caller "
+        "(`benchmarks/profile_step.py`, `PHASES`).",
+        "",
+    ]
+    for name, res in results.items():
+        lines += _section(name, res, before.get(name))
+    out.write_text("\n".join(lines) + "\n")
+    print(f"wrote {out}")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="40 steps per configuration")
+    ap.add_argument("--steps", type=int, help="random-action steps per configuration")
+    ap.add_argument("--baseline", type=Path, help="an older profile.json to compare with")
+    ap.add_argument("--out", type=Path, default=RESULTS / "profile.md")
+    args = ap.parse_args(argv)
+    run(args.quick, args.out, args.steps, args.baseline)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
