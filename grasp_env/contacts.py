@@ -177,11 +177,15 @@ def broad_phase(pl: Placement, margin: float) -> list[int]:
     return near
 
 
-def candidate_gaps(pl: Placement, bodies: list[int]) -> list[tuple[ContactKey, float, float]]:
+def candidate_gaps(
+    pl: Placement, bodies: list[int], slack: float = 0.0
+) -> list[tuple[ContactKey, float, float]]:
     """Every vertex-edge pair of the object and ``bodies`` whose vertex projects onto the edge.
 
-    Returns ``(key, gap, t)`` for pairs with ``t`` in [0, 1] (support: all object vertices).
-    Vectorised over vertices and edges of each body pair.
+    Returns ``(key, gap, t)`` for pairs with ``t`` in [0, 1], widened at both ends by
+    ``slack`` (a length): events are located to within the contact tolerance, so a vertex
+    that has just reached an edge's end (a vertex-vertex touch) may project a hair outside it
+    (support: all object vertices). Vectorised over vertices and edges of each body pair.
     """
     out: list[tuple[ContactKey, float, float]] = []
     obj, obj_n = pl.obj_W, pl.obj_n_W
@@ -196,14 +200,18 @@ def candidate_gaps(pl: Placement, bodies: list[int]) -> list[tuple[ContactKey, f
         # object vertex k on hand edge j
         rel = obj[:, None, :] - poly[None, :, :]  # (k, j, 2)
         gap = (rel * n[None]).sum(-1)
-        t = (rel * d[None]).sum(-1) / (d * d).sum(-1)[None]
-        for k, j in zip(*np.nonzero((t >= 0.0) & (t <= 1.0)), strict=True):
+        L = np.sqrt((d * d).sum(-1))
+        t = (rel * d[None]).sum(-1) / (L * L)[None]
+        e = slack / L[None]
+        for k, j in zip(*np.nonzero((t >= -e) & (t <= 1.0 + e)), strict=True):
             out.append(((body, EDGE, int(k), int(j)), float(gap[k, j]), float(t[k, j])))
         # hand vertex j on object edge k
         rel = poly[:, None, :] - obj[None, :, :]  # (j, k, 2)
         gap = (rel * obj_n[None]).sum(-1)
-        t = (rel * obj_d[None]).sum(-1) / (obj_d * obj_d).sum(-1)[None]
-        for j, k in zip(*np.nonzero((t >= 0.0) & (t <= 1.0)), strict=True):
+        L = np.sqrt((obj_d * obj_d).sum(-1))
+        t = (rel * obj_d[None]).sum(-1) / (L * L)[None]
+        e = slack / L[None]
+        for j, k in zip(*np.nonzero((t >= -e) & (t <= 1.0 + e)), strict=True):
             out.append(((body, TIP, int(k), int(j)), float(gap[j, k]), float(t[j, k])))
     return out
 
@@ -243,7 +251,7 @@ def detect(pl: Placement, tol: float) -> list[ContactKey]:
     keys: list[ContactKey] = []
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     cands = sorted(
-        candidate_gaps(pl, broad_phase(pl, margin)), key=lambda c: c[0][1]
+        candidate_gaps(pl, broad_phase(pl, margin), slack=tol), key=lambda c: c[0][1]
     )  # edges first
     for key, gap, _t in cands:
         if abs(gap) > tol or not _locally_valid(pl, key, tol):

@@ -180,18 +180,31 @@ class Simulator:
         s_eps = max(1e-13, self.tol / reach)
         stuck_fall = False
         losing = None  # (E, v) of a plan dropped for a negative force at this s
+        override, forced = None, set()  # a plan with a touching contact forced active
         carry = None  # (E, v) kept from an accepted step whose active set stays valid
         for _ in range(self.max_iterations):
             h = h0 + s * dh
             determined = carry is not None
+            overridden = override is not None
             if determined:
                 plan, carry = carry, None
+            elif overridden:
+                plan, override = override, None
             else:
                 pl = ct.Placement(self.scene, q, h)
                 keys = [k for k in ct.detect(pl, self.tol) if k not in banned]
                 plan = self._plan(pl, keys, h, dh, allow_fall=not stuck_fall)
             stuck_fall = False
             if plan == "jam":
+                if losing is not None:
+                    # Contacts dropped for a negative force leave the object unheld just
+                    # ahead: past the boundary of equilibrium it falls.
+                    nudged = self._nudge(q, s, *losing, h0, dh, s_end)
+                    if nudged is not None:
+                        s, q = nudged
+                        q = self._fall(q, h0 + s * dh, s, events)
+                        banned, losing, forced = set(), None, set()
+                        continue
                 q_fallen = self._fall_if_unheld(q, h, s, events)
                 if q_fallen is not None:
                     q = q_fallen
@@ -225,7 +238,7 @@ class Simulator:
                 if self._determined(q_new, h0 + (s + ds) * dh, E):
                     carry = (E, (q_new - q) / ds)
                 q, s = q_new, s + ds
-                banned, losing = set(), None
+                banned, losing, forced = set(), None, set()
                 continue
             s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
             if s_star - s < s_eps:
@@ -235,21 +248,33 @@ class Simulator:
                         # The offending contact cannot stay active here: plan without it.
                         banned.add(key)
                         if event.kind == "lost_contact":
+                            # The others hold the object right here (the lost force is zero):
+                            # continue with them, the old plan's velocity as the predictor.
                             losing = (E, v)
+                            rest_E = [k for k in E if k != key]
+                            if rest_E:
+                                override = (rest_E, v)
                         continue
+                if overridden:
+                    continue  # the forced plan could not go on: plan afresh
                 reverted = False
                 if event.kind == "new_contact" and key is not None and key not in E:
-                    # A touching contact the plan left open closes at once (the object held
-                    # by the others is pushed into it), while keeping it makes its force
-                    # negative: the object sits at an equilibrium that the hand's motion
-                    # destroys (a potential maximum along the other contacts' family). The
-                    # plan's velocity keeps every touching contact closed (V v >= xi).
                     if key in banned and losing is not None:
+                        # Keeping the contact makes its force negative, dropping it lets the
+                        # object into it: the object sits at an equilibrium that the hand's
+                        # motion destroys (a potential maximum along the other contacts'
+                        # family).
                         (E, v), reverted = losing, True
-                    elif key not in banned:
+                    elif key not in banned and key not in forced:
+                        # A touching contact the plan left open (zero force, not tight at
+                        # the least-norm velocity) closes at once: the object held by the
+                        # others is pushed into it, so it joins the active set. The plan's
+                        # velocity keeps every touching contact closed (V v >= xi).
                         pl = ct.Placement(self.scene, q, h0 + s * dh)
                         if key in ct.detect(pl, self.tol):
-                            E, reverted = [*E, key], True
+                            forced.add(key)
+                            override = ([*E, key], v)
+                            continue
                 if event.kind == "lost_contact" or reverted:
                     # The object sits on the boundary of equilibrium: just ahead, no contact
                     # set holds it. Nudge the hand past the boundary and let the object fall.
@@ -257,7 +282,7 @@ class Simulator:
                     if nudged is not None:
                         s, q = nudged
                         q = self._fall(q, h0 + s * dh, s, events)
-                        banned, losing = set(), None
+                        banned, losing, forced = set(), None, set()
                         continue
                 # Nothing consistent lies just ahead: the active contacts' equations fold
                 # (their normals turn concurrent and the forces needed grow without bound) or
@@ -265,13 +290,13 @@ class Simulator:
                 # contacts left cannot hold the object, which then falls first.
                 q_fallen = self._fall_if_unheld(q, h0 + s * dh, s, events)
                 if q_fallen is not None:
-                    q, banned, losing = q_fallen, set(), None
+                    q, banned, losing, forced = q_fallen, set(), None, set()
                     continue
                 events.append(Event("jam", s, tuple(E)))
                 return q, s, True
             events.append(Event(event.kind, s_star, event.contacts))
             q, s = q_star, s_star
-            banned, losing = set(), None
+            banned, losing, forced = set(), None, set()
         raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
 
     def _plan(self, pl: ct.Placement, keys: list, h: np.ndarray, dh: np.ndarray, allow_fall=True):
@@ -561,13 +586,21 @@ class Simulator:
             return None
         return q_fallen
 
-    def _held(self, pl: ct.Placement, keys: list) -> bool:
+    def _held(self, pl: ct.Placement, keys: list, ftol: float | None = None) -> bool:
+        """True when the touching contacts ``keys`` hold the object against gravity (to the
+        force tolerance ``ftol``, default the simulator's). At a vertex-vertex touch the
+        object may move along either candidate's edge (a union of half-planes): it is held
+        only if every choice of candidates holds it."""
+        ftol = self.ftol if ftol is None else ftol
         if not keys:
             return False
-        p, n, _ = _arrays(pl, keys)
-        W = mech.V_ob(p, n, pl.com_W).T
-        _, res = nnls(W, mech.gravity_wrench(self.scene))
-        return res <= self.ftol
+        g = mech.gravity_wrench(self.scene)
+        for choice in _choices(pl, keys, self.tol):
+            p, n, _ = _arrays(pl, choice)
+            _, res = nnls(mech.V_ob(p, n, pl.com_W).T, g)
+            if res > ftol:
+                return False
+        return True
 
     def _fall(self, q: np.ndarray, h: np.ndarray, s: float, events: list[Event]) -> np.ndarray:
         """Quasi-static fall: follow the steepest admissible descent of the potential energy
@@ -576,7 +609,9 @@ class Simulator:
         for _ in range(self.max_iterations):
             pl = ct.Placement(self.scene, q, h)
             keys = ct.detect(pl, self.tol)
-            if self._held(pl, keys):
+            # Held only to rounding: near the boundary of equilibrium a residual within the
+            # usual tolerance still leaves a way down, which the descent below finds.
+            if self._held(pl, keys, ftol=1e-12 * self.weight):
                 events.append(Event("fall_end", s, tuple(keys)))
                 return q
             # At a vertex-vertex touch any one candidate's half-plane suffices locally; take
@@ -588,7 +623,7 @@ class Simulator:
             best, best_event = None, False
             for choice in choices:
                 a, E = self._descent(pl, choice)
-                if np.linalg.norm(a) < 1e-9:
+                if np.linalg.norm(a) < 1e-13:
                     continue  # gravity is balanced to first order by this choice
                 # backtracking: near a stable rest (a cradle) a full step overshoots
                 d = a * self._scale / np.linalg.norm(a) * self.fall_step
