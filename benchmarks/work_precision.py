@@ -38,11 +38,12 @@ RUN_LIMIT = 60.0  #: seconds after which one run is abandoned ("timeout")
 
 @dataclass(frozen=True)
 class Case:
-    """A scene and a list of absolute hand targets ``(k, 5)``; ``None`` is the closing motion."""
+    """A scene and absolute hand targets ``(k, 5)``, or ``None``: the closing motion by ``dq``."""
 
     name: str
     scene: str
     targets: np.ndarray | None = None
+    dq: float = DQ
 
 
 def closing_motion(sim: grasp_env.Simulator, dq: float = DQ, max_moves: int = 1000):
@@ -76,7 +77,7 @@ def simulate(case: Case, **sim_kwargs) -> tuple[np.ndarray, int, int]:
     """Run a case: the object poses ``(k, 3)`` it is judged on, the moves and the events."""
     sim = grasp_env.Simulator(case.scene, **sim_kwargs)
     if case.targets is None:
-        state, moves = closing_motion(sim)
+        state, moves = closing_motion(sim, case.dq)
         return state.object_pose[None, :], moves, len(state.events)
     state = sim.settle(sim.scene.object.start_pose, hand_setup(sim.scene))
     poses, events = [], len(state.events)
@@ -126,8 +127,11 @@ def run(
     paths: int = 5,
     moves: int = 12,
     repeat: int = 3,
+    dq: float = DQ,
+    fig13: bool = True,
 ) -> Path:
-    """Run the work-precision benchmark and write its markdown page."""
+    """Run the work-precision benchmark (``fig13=False``: the random paths only) and write its
+    markdown page."""
     if quick:
         paths, moves, repeat = min(paths, 1), min(moves, 4), 1
         fig13_grid = [(1e-7, 1.0), (1e-9, 1.0)]
@@ -138,7 +142,8 @@ def run(
         path_grid = list(itertools.product((1e-5, 1e-7, 1e-9), (1.0, 0.25)))
         fig13_ref, path_ref = 0.01, 0.05
     scenes = [s for s in grasp_env.bundled_scenes() if s != "fig13"]
-    cases = [(Case("fig13 closing motion", "fig13"), fig13_grid, fig13_ref, repeat)]
+    closing = Case(f"fig13 closing motion ({dq:g} rad per move)", "fig13", dq=dq)
+    cases = [(closing, fig13_grid, fig13_ref, repeat)] if fig13 else []
     cases += [
         (random_path(scenes[i % len(scenes)], i, moves), path_grid, path_ref, 1)
         for i in range(paths)
@@ -189,7 +194,9 @@ def run(
                         else "no setting reached the error"
                     )
                 )
-    head = [f"## fig13 closing motion to error <= {TARGET_ERROR:g}", "", *summary, ""]
+    head = (
+        [f"## fig13 closing motion to error <= {TARGET_ERROR:g}", "", *summary, ""] if fig13 else []
+    )
     return write(out, "Work-precision of the simulator", body[:2] + head + body[2:])
 
 

@@ -1,0 +1,42 @@
+"""Run the benchmark suite of issue 7 and write ``benchmarks/results/*.md``.
+
+Usage: ``python -m benchmarks [--quick] [--only NAME ...] [--out DIR]`` from the repository
+root (full suite about 10 minutes, ``--quick`` about one). Names: throughput,
+work_precision, profile, memory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from benchmarks import memory, profile_step, throughput, work_precision
+from benchmarks.common import RESULTS, headless
+
+SUITE = {
+    "throughput": lambda quick, out: throughput.run(quick, out / "throughput.md"),
+    "work_precision": lambda quick, out: work_precision.run(quick, out / "work_precision.md"),
+    "profile": lambda quick, out: profile_step.run(quick, out / "profile.md"),
+    "memory": lambda quick, out: memory.run(quick, out / "memory.md"),
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="small budgets (about one minute)")
+    ap.add_argument("--only", nargs="+", choices=list(SUITE), default=list(SUITE))
+    ap.add_argument("--out", type=Path, default=RESULTS, help="results folder")
+    args = ap.parse_args(argv)
+    headless()
+    start = time.perf_counter()
+    for name in args.only:
+        t0 = time.perf_counter()
+        SUITE[name](args.quick, args.out)
+        print(f"== {name}: {time.perf_counter() - t0:.0f} s")
+    print(f"== suite: {time.perf_counter() - start:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
