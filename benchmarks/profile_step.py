@@ -1,5 +1,8 @@
 """Where the time of one env step goes: a cProfile of random-action steps, by category.
 
+Also profiled: the ``fig13`` closing motion of the work-precision benchmark (issue 7's
+20 ms target).
+
 Every profiled function's own time (cProfile ``tottime``) is charged to the nearest
 categorised function on its call path: a function matching a rule in :data:`PHASES` is its
 own category; any other function (numpy, scipy, helpers) is charged to its callers, split in
@@ -23,13 +26,15 @@ import pstats
 import re
 import time
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 import gymnasium as gym
 
-import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
+import grasp_env
 from benchmarks.common import RESULTS, git_commit, headless, machine_line, table
 from benchmarks.throughput import RandomActions
+from benchmarks.work_precision import closing_motion
 
 #: ``(category, file regex, function-name regex)``; the first rule that matches wins.
 PHASES: list[tuple[str, str, str]] = [
@@ -53,7 +58,7 @@ PHASES: list[tuple[str, str, str]] = [
     ("determined-set test", r"grasp_env/simulator\.py$", r"_determined"),
     (
         "contact detection (gaps, broad phase)",
-        r"grasp_env/contacts\.py$",
+        r"grasp_env/(contacts|simulator)\.py$",
         r"detect|gap|broad_phase|_locally_valid|overlap",
     ),
     (
@@ -114,47 +119,56 @@ def categorise(stats: dict) -> dict[str, float]:
     return dict(seconds)
 
 
-def _step_loop(env: gym.Env, policy: RandomActions, steps: int) -> None:
-    obs, _ = env.reset(seed=0)
-    for _ in range(steps):
-        obs, _, terminated, truncated, _ = env.step(policy.act(obs))
-        if terminated or truncated:
-            obs, _ = env.reset()
-
-
-def profile_config(kwargs: dict, steps: int) -> dict:
-    """Unprofiled and profiled us/step of random-action steps, and us/step per category."""
+def _step_loop(kwargs: dict, steps: int) -> Callable[[], None]:
+    """A workload: ``steps`` random-action steps of a new env from ``reset(seed=0)``."""
     env = gym.make("FrictionlessGrasp-v0", **kwargs)
+
+    def work() -> None:
+        policy = RandomActions(env.action_space, seed=0)
+        obs, _ = env.reset(seed=0)
+        for _ in range(steps):
+            obs, _, terminated, truncated, _ = env.step(policy.act(obs))
+            if terminated or truncated:
+                obs, _ = env.reset()
+
+    return work
+
+
+def _closing() -> None:
+    closing_motion(grasp_env.Simulator("fig13"))
+
+
+def profile(work: Callable[[], object], units: int) -> dict:
+    """Unprofiled and profiled us per unit of ``work`` (one call covers ``units``), and us per
+    unit by category."""
     t0 = time.perf_counter()
-    _step_loop(env, RandomActions(env.action_space, seed=0), steps)
-    plain = (time.perf_counter() - t0) / steps
+    work()
+    plain = (time.perf_counter() - t0) / units
     prof = cProfile.Profile()
     prof.enable()
-    _step_loop(env, RandomActions(env.action_space, seed=0), steps)
+    work()
     prof.disable()
-    env.close()
     stats = pstats.Stats(prof).stats
     seconds = categorise(stats)
     top = sorted(stats.items(), key=lambda kv: -kv[1][2])[:12]
     return {
-        "kwargs": kwargs,
-        "steps": steps,
+        "units": units,
         "plain_us": plain * 1e6,
-        "profiled_us": sum(seconds.values()) / steps * 1e6,
-        "categories": {k: v / steps * 1e6 for k, v in seconds.items()},
+        "profiled_us": sum(seconds.values()) / units * 1e6,
+        "categories": {k: v / units * 1e6 for k, v in seconds.items()},
         "top": [
-            (f"{Path(f[0]).name}:{f[1]}({f[2]})", s[1] / steps, s[2] / steps * 1e6) for f, s in top
+            (f"{Path(f[0]).name}:{f[1]}({f[2]})", s[1] / units, s[2] / units * 1e6) for f, s in top
         ],
     }
 
 
-def _section(name: str, res: dict, before: dict | None) -> list[str]:
+def _section(title: str, unit: str, res: dict, before: dict | None) -> list[str]:
     cats = sorted(res["categories"].items(), key=lambda kv: -kv[1])
     total = res["profiled_us"]
-    header = ["category", "% of step", "us/step (profiled)"]
+    header = ["category", f"% of {unit}", f"us/{unit} (profiled)"]
     rows = []
     if before is not None:
-        header += ["before us/step", "after / before"]
+        header += [f"before us/{unit}", "after / before"]
     for cat, us in cats:
         row = [cat, f"{100 * us / total:.1f}", f"{us:,.0f}"]
         if before is not None:
@@ -166,26 +180,28 @@ def _section(name: str, res: dict, before: dict | None) -> list[str]:
         old_total = before["profiled_us"]
         total_row += [f"{old_total:,.0f}", f"{total / old_total:.2f}"]
     rows.append(total_row)
-    plain = f"Unprofiled: **{res['plain_us']:,.0f} us/step** ({1e6 / res['plain_us']:,.0f} steps/s)"
+    plain = f"Unprofiled: **{res['plain_us']:,.0f} us/{unit}**"
     if before is not None:
-        plain += f"; before: {before['plain_us']:,.0f} us/step"
+        ratio = res["plain_us"] / before["plain_us"]
+        plain += f" (before: {before['plain_us']:,.0f}, after / before {ratio:.2f})"
     return [
-        f"## {name}: `{res['kwargs'] or 'default kwargs'}`, {res['steps']} random-action steps",
+        f"## {title}",
         "",
-        plain + f"; profiled: {total:,.0f} us/step.",
+        plain + f"; profiled: {total:,.0f} us/{unit}.",
         "",
         *table(header, rows),
         "",
         "Top functions by own time:",
         "",
         *table(
-            ["function", "calls/step", "own us/step"],
+            ["function", f"calls/{unit}", f"own us/{unit}"],
             [(f"`{n}`", f"{c:.1f}", f"{us:,.0f}") for n, c, us in res["top"]],
         ),
         "",
     ]
 
 
+#: Env configurations profiled: name -> ``gymnasium.make`` kwargs.
 CONFIGS = {"default": {}, "palm_control": {"palm_control": True}}
 
 
@@ -194,15 +210,23 @@ def run(
     out: Path = RESULTS / "profile.md",
     steps: int | None = None,
     baseline: Path | None = None,
+    closing: bool = True,
 ) -> Path:
-    """Profile both env configurations and write ``profile.md`` and ``profile.json``."""
+    """Profile the env configurations (and the fig13 closing motion) and write
+    ``profile.md`` and ``profile.json``."""
     headless()
     steps = steps or (40 if quick else 400)
     before = json.loads(baseline.read_text()) if baseline else {}
-    results = {}
+    sections, results = [], {}
     for name, kwargs in CONFIGS.items():
-        results[name] = profile_config(kwargs, steps)
+        results[name] = profile(_step_loop(kwargs, steps), steps)
+        title = f"{name}: `{kwargs or 'default kwargs'}`, {steps} random-action steps"
+        sections.append((name, title, "step"))
         print(f"{name}: {results[name]['plain_us']:,.0f} us/step unprofiled")
+    if closing:
+        results["fig13_closing"] = profile(_closing, 1)
+        title = "fig13 closing motion (`benchmarks.work_precision.closing_motion`, defaults)"
+        sections.append(("fig13_closing", title, "motion"))
     stamp = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     record = {"commit": git_commit(), "time": stamp, **results}
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -215,11 +239,11 @@ def run(
         f"Commit {record['commit']}, {stamp}."
         + (f" Before: {before.get('commit')}, {before.get('time')}." if before else ""),
         "Own time of each function charged to its nearest categorised caller "
-        "(`benchmarks/profile_step.py`, `PHASES`).",
+        "(`benchmarks/profile_step.py`, `PHASES`); `render_mode=None`.",
         "",
     ]
-    for name, res in results.items():
-        lines += _section(name, res, before.get(name))
+    for name, title, unit in sections:
+        lines += _section(title, unit, results[name], before.get(name))
     out.write_text("\n".join(lines) + "\n")
     print(f"wrote {out}")
     return out

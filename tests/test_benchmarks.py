@@ -18,7 +18,7 @@ from benchmarks import memory, profile_step, throughput, work_precision
             lambda out: work_precision.run(True, out, paths=1, moves=2, fig13=False),
             id="work_precision",
         ),
-        pytest.param(lambda out: profile_step.run(True, out, steps=3), id="profile"),
+        pytest.param(lambda out: profile_step.run(True, out, steps=3, closing=False), id="profile"),
         pytest.param(lambda out: memory.run(True, out, steps=2, repeat=1, workers=2), id="memory"),
     ],
 )
@@ -30,8 +30,10 @@ def test_piece_writes_markdown(piece, tmp_path):
 
 
 def test_profile_baseline_columns(tmp_path):
-    first = profile_step.run(True, tmp_path / "a.md", steps=2)
-    second = profile_step.run(True, tmp_path / "b.md", steps=2, baseline=first.with_suffix(".json"))
+    first = profile_step.run(True, tmp_path / "a.md", steps=2, closing=False)
+    second = profile_step.run(
+        True, tmp_path / "b.md", steps=2, baseline=first.with_suffix(".json"), closing=False
+    )
     assert "after / before" in second.read_text()
     record = json.loads(first.with_suffix(".json").read_text())
     assert set(profile_step.CONFIGS) <= set(record)
