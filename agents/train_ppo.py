@@ -30,14 +30,22 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
-import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
+from grasp_env.envs import ENTRY_POINT
 
 #: Reward terms of FrictionlessGrasp-v0 (``info["reward_<term>"]``), summed per episode.
 REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
 #: Keys the Monitor CSV records at each episode's end.
 MONITOR_KEYWORDS = ("is_success", *(f"ep_reward_{t}" for t in REWARD_TERMS))
 #: Keys of a config entry that are not PPO constructor arguments.
-ENTRY_KEYS = ("env_id", "env_kwargs", "n_envs", "n_timesteps", "policy", "normalize")
+ENTRY_KEYS = (
+    "env_id",
+    "env_kwargs",
+    "env_wrapper",
+    "n_envs",
+    "n_timesteps",
+    "policy",
+    "normalize",
+)
 #: Offsets of the evaluation env's seed from the training seed (training envs use
 #: ``seed .. seed + n_envs - 1``); ``agents.evaluate`` draws its held-out shapes elsewhere.
 EVAL_SEED_OFFSET = 1000
@@ -76,7 +84,7 @@ def get_entry(config: dict[str, dict[str, Any]], name: str) -> dict[str, Any]:
 def check_entry(name: str, entry: dict[str, Any]) -> None:
     """Build and close one env of an entry; fails naming the entry and the bad kwarg."""
     try:
-        gym.make(entry["env_id"], **entry.get("env_kwargs", {})).close()
+        make_env(entry["env_id"], entry.get("env_kwargs", {}), None, wrapper_specs(entry)).close()
     except (gym.error.Error, TypeError, ValueError) as exc:
         raise ValueError(f"entry {name!r}: cannot build its env: {exc}") from None
 
@@ -113,10 +121,7 @@ def normalize_kwargs(entry: dict[str, Any]) -> dict[str, Any] | None:
 
 # ---------------------------------------------------------------------- envs
 class EpisodeTerms(gym.Wrapper):
-    """Adds ``ep_reward_<term>``, each reward term summed over the episode, to every info.
-
-    A term missing from the info (another env, as in the CartPole benchmark) counts as 0.
-    """
+    """Adds ``ep_reward_<term>``, each reward term summed over the episode, to every info."""
 
     def reset(self, **kwargs):
         self._sums = dict.fromkeys(REWARD_TERMS, 0.0)
@@ -126,27 +131,85 @@ class EpisodeTerms(gym.Wrapper):
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         for term in REWARD_TERMS:
-            self._sums[term] += info.get(f"reward_{term}", 0.0)
+            self._sums[term] += info[f"reward_{term}"]
         return obs, reward, terminated, truncated, {**info, **self._episode_sums()}
 
     def _episode_sums(self) -> dict[str, float]:
         return {f"ep_reward_{t}": v for t, v in self._sums.items()}
 
 
-def make_env(env_id: str, env_kwargs: dict[str, Any], monitor_file: str | None = None) -> gym.Env:
-    """One env of an entry: ``gym.make`` + episode sums of the reward terms + ``Monitor``."""
+class ApproachShaping(gym.Wrapper):
+    """Potential-based shaping toward a grasp (training only; the optimal policy is unchanged).
+
+    Adds ``gamma * Phi(s') - Phi(s)`` to the reward, with ``Phi = -approach * |p_P| / w +
+    touch * (hand bodies touching the object)``: ``p_P`` is the object's centre in the palm
+    frame (observation entries 9-10), so the palm is drawn toward the object and contacts
+    are encouraged. ``Phi = 0`` at a terminal state, as for the env's lift term. The term is
+    reported as ``info["reward_approach"]``.
+    """
+
+    def __init__(self, env: gym.Env, approach: float = 1.0, touch: float = 0.2, gamma=0.99):
+        super().__init__(env)
+        self.approach, self.touch, self.gamma = float(approach), float(touch), float(gamma)
+
+    def _potential(self, obs: np.ndarray, info: dict) -> float:
+        touching = {c["body"] for c in info["contacts"]} - {"support"}
+        return -self.approach * float(np.hypot(obs[9], obs[10])) + self.touch * len(touching)
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._phi = self._potential(obs, info)
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        phi = 0.0 if terminated else self._potential(obs, info)
+        shaping = self.gamma * phi - self._phi
+        self._phi = phi
+        return obs, reward + shaping, terminated, truncated, {**info, "reward_approach": shaping}
+
+
+#: Training-only wrappers a config entry may name in ``env_wrapper`` (zoo key).
+WRAPPERS = {"agents.train_ppo.ApproachShaping": ApproachShaping}
+
+
+def wrapper_specs(entry: dict[str, Any]) -> list[tuple[type[gym.Wrapper], dict]]:
+    """The entry's ``env_wrapper`` (zoo forms: a name, ``{name: kwargs}`` or a list)."""
+    value = entry.get("env_wrapper") or []
+    items = value if isinstance(value, list) else [value]
+    specs = []
+    for item in items:
+        name, kwargs = next(iter(item.items())) if isinstance(item, dict) else (item, {})
+        if name not in WRAPPERS:
+            raise ValueError(f"env_wrapper {name!r} is not one of {sorted(WRAPPERS)}")
+        specs.append((WRAPPERS[name], kwargs or {}))
+    return specs
+
+
+def make_env(
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    monitor_file: str | None = None,
+    wrappers: list[tuple[type[gym.Wrapper], dict]] = (),
+) -> gym.Env:
+    """One env of an entry: ``gym.make``, the entry's wrappers, ``Monitor``, which for
+    FrictionlessGrasp also logs ``is_success`` and the episode sums of the reward terms."""
     from stable_baselines3.common.monitor import Monitor
 
-    env = EpisodeTerms(gym.make(env_id, **env_kwargs))
-    return Monitor(env, monitor_file, info_keywords=MONITOR_KEYWORDS)
+    env = gym.make(env_id, **env_kwargs)
+    if env.spec.entry_point != ENTRY_POINT:  # another env (the CartPole benchmark)
+        return Monitor(env, monitor_file)
+    for cls, kwargs in wrappers:
+        env = cls(env, **kwargs)
+    return Monitor(EpisodeTerms(env), monitor_file, info_keywords=MONITOR_KEYWORDS)
 
 
-def _env_factory(env_id: str, env_kwargs: dict, monitor_file: str | None):
+def _env_factory(env_id: str, env_kwargs: dict, monitor_file: str | None, wrappers: list):
     def factory() -> gym.Env:
         import torch
 
         torch.set_num_threads(1)  # also in subprocess workers
-        return make_env(env_id, env_kwargs, monitor_file)
+        return make_env(env_id, env_kwargs, monitor_file, wrappers)
 
     return factory
 
@@ -168,6 +231,7 @@ def make_vec_env(
             entry["env_id"],
             entry.get("env_kwargs", {}),
             None if monitor_dir is None else str(Path(monitor_dir) / str(rank)),
+            wrapper_specs(entry),
         )
         for rank in range(n_envs)
     ]
@@ -373,6 +437,16 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m agents.train_ppo", description=__doc__)
     parser.add_argument("--config", default="configs/ppo.yml", help="zoo-style YAML file")
@@ -386,7 +460,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--eval-freq", type=_positive_int, default=10_000, help="env steps")
     parser.add_argument("--eval-episodes", type=_positive_int, default=5)
     parser.add_argument("--save-freq", type=_positive_int, default=25_000, help="env steps")
-    parser.add_argument("--max-minutes", type=float, help="stop training after this wall time")
+    parser.add_argument(
+        "--max-minutes", type=_positive_float, help="stop training after this wall time"
+    )
     parser.add_argument("--no-progress-bar", action="store_true")
     args = parser.parse_args(argv)
     try:

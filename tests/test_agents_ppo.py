@@ -11,6 +11,7 @@ import json
 import math
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
@@ -48,8 +49,9 @@ def test_config_has_the_two_set_ups():
         (["--env-id", "no_such_entry"], "'no_such_entry' is not in the config"),
         (["--env-id", "fig13_fingers", "--config", "missing.yml"], "'missing.yml'"),
         (["--env-id", "fig13_fingers", "--n-timesteps", "-5"], "'-5'"),
+        (["--env-id", "fig13_fingers", "--max-minutes", "nan"], "'nan'"),
     ],
-    ids=["unknown-entry", "missing-file", "negative-steps"],
+    ids=["unknown-entry", "missing-file", "negative-steps", "nan-minutes"],
 )
 def test_train_command_names_the_bad_value(argv, message, capsys):
     with pytest.raises(SystemExit):
@@ -63,6 +65,11 @@ def test_bad_env_kwarg_is_named(tmp_path):
     config.write_text(yaml.safe_dump({"bad": entry}))
     with pytest.raises(ValueError, match=r"entry 'bad'.*sideways"):
         tp.check_entry("bad", tp.get_entry(tp.load_config(config), "bad"))
+
+
+def test_unknown_wrapper_is_named():
+    with pytest.raises(ValueError, match=r"'my\.Wrapper'"):
+        tp.wrapper_specs({"env_wrapper": "my.Wrapper"})
 
 
 @pytest.fixture(scope="module")
@@ -164,3 +171,23 @@ def test_bootstrap_interval_brackets_the_mean():
     assert lo < 2.5 < hi
     assert ev.bootstrap_mean([2.0, 2.0]) == (2.0, 2.0)
     assert all(math.isnan(x) for x in ev.bootstrap_mean([]))
+
+
+def test_approach_shaping_is_potential_based():
+    entry = tp.get_entry(tp.load_config(CONFIG), "random_shapes_palm")
+    ((cls, kwargs),) = tp.wrapper_specs(entry)
+    env = cls(gym.make(entry["env_id"], **entry["env_kwargs"]), **kwargs)
+
+    def potential(obs, info):  # independent of the wrapper's: palm-frame distance, contacts
+        touching = {c["body"] for c in info["contacts"] if c["body"] != "support"}
+        return -kwargs["approach"] * math.dist(obs[9:11], (0, 0)) + kwargs["touch"] * len(touching)
+
+    obs, info = env.reset(seed=3)
+    for _ in range(3):
+        new, reward, terminated, _, new_info = env.step(np.array([1, 1, 0, -1, 0], np.float32))
+        assert not terminated  # Phi is 0 at a terminal state
+        expected = kwargs["gamma"] * potential(new, new_info) - potential(obs, info)
+        assert new_info["reward_approach"] == pytest.approx(expected, abs=1e-9)
+        rest = sum(new_info[f"reward_{t}"] for t in tp.REWARD_TERMS)
+        assert reward == pytest.approx(rest + expected, abs=1e-9)
+        obs, info = new, new_info
