@@ -1,11 +1,11 @@
 """PPO training throughput on FrictionlessGrasp-v0 against CartPole-v1, in the same run.
 
-    python benchmarks/ppo_throughput.py [--entry fig13_fingers] [--steps 2048] \
-        [--vec-env subproc dummy]
+Trains the same PPO settings (a ``configs/ppo.yml`` entry's: n_envs, n_steps, batch size,
+epochs, network, VecNormalize; no evaluation, checkpoints or progress bar; one torch thread)
+for a fixed number of env steps on our env and on CartPole-v1, with each vector-env class
+(SubprocVecEnv, DummyVecEnv), and reports env steps/s of ``PPO.learn`` and the ratio.
 
-Trains the same PPO settings (the config entry's, ``configs/ppo.yml``; no evaluation, no
-checkpoints, no progress bar) for ``--steps`` env steps on our env and on CartPole-v1 with
-each vector env class, one torch thread, and prints env steps/s and their ratio.
+Usage: ``python -m benchmarks.ppo_throughput [--quick] [--entry fig13_fingers]``
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from pathlib import Path
 
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+from benchmarks.common import REPO, RESULTS, headless, table, write
 
-from agents.train_ppo import get_entry, load_config, make_vec_env, normalize_kwargs, ppo_kwargs
+VEC_ENVS = ("subproc", "dummy")
 
 
 def steps_per_second(entry: dict, steps: int, vec_env: str, seed: int = 0) -> float:
@@ -25,6 +25,8 @@ def steps_per_second(entry: dict, steps: int, vec_env: str, seed: int = 0) -> fl
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
+
+    from agents.train_ppo import make_vec_env, normalize_kwargs, ppo_kwargs
 
     torch.set_num_threads(1)
     venv = make_vec_env(entry, int(entry.get("n_envs", 1)), seed, vec_env)
@@ -40,22 +42,47 @@ def steps_per_second(entry: dict, steps: int, vec_env: str, seed: int = 0) -> fl
     return rate
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--config", default="configs/ppo.yml")
-    parser.add_argument("--entry", default="fig13_fingers")
-    parser.add_argument("--steps", type=int, default=2048)
-    parser.add_argument("--vec-env", nargs="+", default=["subproc", "dummy"])
-    args = parser.parse_args()
-    entry = get_entry(load_config(args.config), args.entry)
-    cartpole = {**entry, "env_id": "CartPole-v1", "env_kwargs": {}}
-    print(f"| vec env | {args.entry} steps/s | CartPole-v1 steps/s | ratio | load average |")
-    print("| --- | --- | --- | --- | --- |")
-    for vec_env in args.vec_env:
-        ours = steps_per_second(entry, args.steps, vec_env)
-        theirs = steps_per_second(cartpole, max(args.steps, 8192), vec_env)
+def run(
+    quick: bool = False,
+    out: Path = RESULTS / "ppo_throughput.md",
+    entry_name: str = "fig13_fingers",
+) -> Path:
+    """Measure both envs with both vector-env classes and write the markdown page."""
+    from agents.train_ppo import get_entry, load_config
+
+    headless()
+    entry = get_entry(load_config(REPO / "configs" / "ppo.yml"), entry_name)
+    rollout = int(entry.get("n_envs", 1)) * int(entry["n_steps"])
+    ours_steps = rollout * (1 if quick else 2)
+    cartpole_steps = rollout * (4 if quick else 8)
+    cartpole = {**entry, "env_id": "CartPole-v1", "env_kwargs": {}, "env_wrapper": None}
+    rows = []
+    for vec_env in VEC_ENVS:
+        ours = steps_per_second(entry, ours_steps, vec_env)
+        theirs = steps_per_second(cartpole, cartpole_steps, vec_env)
         load = os.getloadavg()[0]
-        print(f"| {vec_env} | {ours:.0f} | {theirs:.0f} | {ours / theirs:.3f} | {load:.1f} |")
+        print(f"{vec_env}: {ours:.0f} vs CartPole {theirs:.0f} steps/s (load {load:.1f})")
+        ratio = ours / theirs
+        rows.append([vec_env, f"{ours:.0f}", f"{theirs:.0f}", f"{ratio:.3f}", f"{load:.1f}"])
+    header = ["vec env", f"{entry_name} steps/s", "CartPole-v1 steps/s", "ratio", "load (1 min)"]
+    body = [
+        f"PPO settings of `{entry_name}` (configs/ppo.yml): {entry['n_envs']} envs, n_steps "
+        f"{entry['n_steps']}, batch {entry['batch_size']}, {entry['n_epochs']} epochs, "
+        f"{entry['policy_kwargs']}; {ours_steps} steps on our env, {cartpole_steps} on "
+        "CartPole-v1; wall time of `PPO.learn` only.",
+        "",
+        *table(header, rows),
+    ]
+    return write(out, "PPO training throughput", body)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="one rollout per measurement")
+    parser.add_argument("--entry", default="fig13_fingers", help="configs/ppo.yml entry")
+    parser.add_argument("--out", type=Path, default=RESULTS / "ppo_throughput.md")
+    args = parser.parse_args(argv)
+    run(args.quick, args.out, args.entry)
 
 
 if __name__ == "__main__":
