@@ -43,6 +43,36 @@ from grasp_env.width import object_width
 
 PHASES = ("pre-liftoff", "lifting", "grip adjustment")
 
+#: Gap between the hanging tip of the longer finger and the support in the centred
+#: pre-liftoff placement, in palm widths (the paper's "just high enough so that the longer
+#: finger could not touch the support").
+PALM_CLEARANCE = 0.01
+#: How far the centred placement lowers the palm, in palm widths, when a finger cannot reach
+#: the object from above.
+PALM_LOWERING = 0.05
+#: Finger step of the pre-liftoff closing motion (rad); the first touch is then located
+#: exactly from the simulator's events, so the step only changes the cost.
+PRELIFTOFF_STEP = 0.1
+#: Lifting alternatives to the equal-rate squeeze, as multiples of the finger step
+#: ``(dq1, dq2)`` (finger 1 closes as q1 grows, finger 2 as q2 falls).
+ALTERNATIVES = (
+    (1.0, -0.5),
+    (0.5, -1.0),
+    (1.0, 0.0),
+    (0.0, -1.0),
+    (1.0, 1.0),
+    (-1.0, -1.0),
+    (0.5, 0.5),
+    (-0.5, -0.5),
+    (-0.5, 0.0),
+    (0.0, 0.5),
+)
+#: Squeezes in a row allowed without bringing the object closer to the palm than before.
+PATIENCE = 10
+#: Least decrease of the object's distance to the palm that counts as lifting progress,
+#: relative to the object's size.
+PROGRESS_TOL = 1e-6
+
 
 @dataclass(frozen=True)
 class PlanStep:
@@ -141,7 +171,9 @@ def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray, tol: floa
     return None
 
 
-def tipping_placement(sim: Simulator, palm_angles=None, n_q: int = 24) -> tuple[State, str] | None:
+def tipping_placement(
+    sim: Simulator, palm_angles=(0.0,), n_q: int = 24
+) -> tuple[State, str] | None:
     """Pre-liftoff search for the paper's Fig. 4 placement.
 
     For each tippability region (right: finger 2's tip at the right support contact, finger 1
@@ -156,7 +188,6 @@ def tipping_placement(sim: Simulator, palm_angles=None, n_q: int = 24) -> tuple[
     q_obj = scene.object.start_pose.copy()
     left, right = tippability_regions(scene)
     tol = sim.tol
-    angles = np.linspace(-0.6, 0.6, 7) if palm_angles is None else palm_angles
     best = None
     for side, region in (("right", right), ("left", left)):
         if region.is_empty:
@@ -164,8 +195,9 @@ def tipping_placement(sim: Simulator, palm_angles=None, n_q: int = 24) -> tuple[
         hold = 2 if side == "right" else 1  # finger whose tip sits on the support contact
         move = 3 - hold
         p_C = region.contact_W
+        side_up = _side_direction(scene, p_C, hold)
         lim = scene.fingers[hold - 1].limits
-        for th in angles:
+        for th in palm_angles:
             for q_hold in np.linspace(lim[0], lim[1], n_q)[1:-1]:
                 u = np.array([math.cos(th + q_hold), math.sin(th + q_hold)])
                 J = p_C - scene.fingers[hold - 1].length * u
@@ -174,6 +206,10 @@ def tipping_placement(sim: Simulator, palm_angles=None, n_q: int = 24) -> tuple[
                 h = np.array([o[0], o[1], th, -math.pi / 2, -math.pi / 2])
                 h[2 + hold] = q_hold
                 h[2 + move] = scene.fingers[move - 1].limits[0 if move == 1 else 1]
+                # The finger's body pokes below its tip: slide the hand up the object's side.
+                low = min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h))
+                if low < 0.0:
+                    h[:2] += (-low + tol) / side_up[1] * side_up
                 q_move = _first_touch(scene, h, move, q_obj, tol)
                 if q_move is None:
                     continue
@@ -196,43 +232,111 @@ def tipping_placement(sim: Simulator, palm_angles=None, n_q: int = 24) -> tuple[
     return None if best is None else (best[1], best[2])
 
 
-def centred_placement(sim: Simulator, margin: float = 0.01, dq: float = 0.01) -> State:
+def _side_direction(scene, p_C: np.ndarray, hold: int) -> np.ndarray:
+    """Unit direction up the object's side from the support contact ``p_C``: along the edge
+    that leaves ``p_C`` upwards on finger ``hold``'s side (finger 2: the right side)."""
+    v = scene.object.vertices_W0
+    k = int(np.argmin(np.linalg.norm(v - p_C, axis=1)))
+    other = v[(k + 1) % len(v)] if hold == 2 else v[k - 1]
+    d = other - v[k]
+    return d / np.linalg.norm(d)
+
+
+def centred_hand(
+    scene, palm_y: float | None = None, object_vertices_W: np.ndarray | None = None
+) -> np.ndarray:
+    """The paper's centred pre-liftoff hand: palm over the object's centroid, parallel to the
+    support, fingers hanging straight down.
+
+    Args:
+        scene: the scene (its hand and, unless given, its object).
+        palm_y: palm height; None: the paper's, ``PALM_CLEARANCE`` palm widths above the
+            longer finger's reach of the support (higher if the object is taller).
+        object_vertices_W: the object's vertices ``(n, 2)`` in the world; default the scene's.
+
+    Returns:
+        Hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,). A finger that would
+        reach into the support hanging is opened (turned outwards) until its body clears the
+        support by ``PALM_CLEARANCE``.
+    """
+    v = scene.object.vertices_W0 if object_vertices_W is None else object_vertices_W
+    w = scene.palm.width
+    clearance = PALM_CLEARANCE * w
+    if palm_y is None:
+        palm_y = max(max(f.length for f in scene.fingers), float(v[:, 1].max())) + clearance
+    lim = scene.joint_limits
+    h = np.array([float(geo.polygon_centroid(v)[0]), palm_y, 0.0, -math.pi / 2, -math.pi / 2])
+    h[3:] = np.clip(h[3:], lim[:, 0], lim[:, 1])
+    for i, opening in ((0, -1.0), (1, 1.0)):  # finger 1 opens as q1 falls, finger 2 as q2 grows
+        reach = scene.fingers[i].length + scene.fingers[i].thickness
+        if palm_y - reach < clearance:
+            # lowest point of the hanging-ish finger ~ palm_y + reach sin(q): open until clear
+            s = min(1.0, (palm_y - clearance) / reach)
+            q = -math.pi / 2 + opening * (math.pi / 2 - math.asin(max(-1.0, s)))
+            h[3 + i] = float(np.clip(q, lim[i, 0], lim[i, 1]))
+    return h
+
+
+def centred_placement(sim: Simulator, step: float = PRELIFTOFF_STEP) -> State:
     """The paper's fallback pre-liftoff placement, returned after the fingers touch.
 
-    The palm is centred over the object, parallel to the support, just high enough (``margin``
-    times the palm width) that the longer finger cannot touch the support, and at least
-    ``margin`` above the object; the fingers hang straight down and close at equal rates
-    (``dq`` per move) until each touches the object or the fingers jam.
+    The palm is centred over the object, parallel to the support, just high enough that the
+    longer finger cannot touch the support (:func:`centred_hand`); the fingers close at equal
+    rates until each touches the object (:func:`close_until_touch`). If a finger closes to its
+    limit without touching (a short finger over a low object), the palm is lowered by
+    ``PALM_LOWERING`` palm widths (fingers opened to clear the support) and the fingers close
+    again, while the palm stays clear of the object.
     """
     scene = sim.scene
     q_obj = scene.object.start_pose.copy()
     top = float(scene.object.vertices_W0[:, 1].max())
-    reach = max(f.length for f in scene.fingers)
-    y_p = max(reach, top) + margin * scene.palm.width
-    h = np.array([q_obj[0], y_p, 0.0, -math.pi / 2, -math.pi / 2])
-    h[3:] = np.clip(h[3:], scene.joint_limits[:, 0], scene.joint_limits[:, 1])
-    state = sim.settle(q_obj, h)
-    return close_until_touch(sim, state, dq)
+    h = centred_hand(scene)
+    state = close_until_touch(sim, sim.settle(q_obj, h), step)
+    while not _both_touch(state) and not state.jammed:
+        y = h[1] - PALM_LOWERING * scene.palm.width
+        if y < top + PALM_CLEARANCE * scene.palm.width:
+            break
+        h = centred_hand(scene, y)
+        if not _hand_clear(scene, h, q_obj, sim.tol):
+            break
+        state = close_until_touch(sim, sim.settle(q_obj, h), step)
+    return state
 
 
-def close_until_touch(
-    sim: Simulator, state: State, dq: float = 0.01, max_moves: int = 400
-) -> State:
-    """Close each finger that does not touch the object yet, in moves of ``dq``, until both
-    touch it, a finger reaches its limit, or the hand jams."""
+def _both_touch(state: State) -> bool:
+    return {"finger1", "finger2"} <= _touching_bodies(state)
+
+
+def close_until_touch(sim: Simulator, state: State, step: float = PRELIFTOFF_STEP) -> State:
+    """Close both fingers at equal rates until each has touched the object or they jam.
+
+    The fingers move in steps of ``step`` rad; a finger that touches stops there (its first
+    touch located exactly from the simulator's ``new_contact`` event) while the other closes
+    on. Stops too when both fingers are at their closing limits or the hand is blocked.
+    """
     lim = sim.scene.joint_limits
-    for _ in range(max_moves):
-        touching = _touching_bodies(state)
-        dq1 = 0.0 if "finger1" in touching else dq
-        dq2 = 0.0 if "finger2" in touching else -dq
-        if dq1 == 0.0 and dq2 == 0.0:
+    closing = np.array([1.0, -1.0])  # finger 1 closes as q1 grows, finger 2 as q2 falls
+    for _ in range(int(4 * math.pi / step) + 4):
+        done = [f"finger{i + 1}" in _touching_bodies(state) for i in range(2)]
+        if all(done) or state.jammed or state.hand_blocked:
             break
-        target = state.finger_angles + np.array([dq1, dq2])
-        if np.all(np.clip(target, lim[:, 0], lim[:, 1]) == state.finger_angles):
+        q = state.finger_angles
+        target = q.copy()
+        for i in range(2):
+            if not done[i]:
+                target[i] = np.clip(q[i] + closing[i] * step, lim[i, 0], lim[i, 1])
+        if np.array_equal(target, q):
             break
-        state = sim.move_hand(state, fingers=target)
-        if state.jammed:
-            break
+        new = sim.move_hand(state, fingers=target)
+        touch = [
+            e.s
+            for e in new.events
+            if e.kind == "new_contact"
+            and any(k[0] in (geo.FINGER1, geo.FINGER2) for k in e.contacts)
+        ]
+        if touch and min(touch) < 1.0:
+            new = sim.move_hand(state, fingers=q + min(touch) * (target - q))
+        state = new
     return state
 
 
@@ -264,77 +368,96 @@ def palm_distance(state: State) -> float:
 
 
 def fingertip_distance(state: State) -> float:
+    """Distance between the two fingertips."""
     tips = kin.fingertips_W(state.scene, state.hand)
     return float(np.linalg.norm(tips[0] - tips[1]))
 
 
-def lift(
-    sim: Simulator,
-    state: State,
-    plan: Plan,
-    dq: float = 0.01,
-    palm_step: float = 0.005,
-    max_steps: int = 600,
-) -> State:
-    """Lifting phase: greedy increments toward the palm until form closure.
+def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: int = 300) -> State:
+    """Lifting phase: finger increments that move the object toward the palm, until form
+    closure with the object off the support. The palm stays fixed, as in the paper.
 
-    Candidate increments, in order of preference: both fingers closing at equal rates (the
-    paper's experiment), one finger leading, one finger alone, the palm moving toward the
-    object, and both fingers turning the same way (to roll the object past a fold where the
-    squeeze jams). The first candidate that moves the hand without dropping the object, (with the
-    object off the support) keeps the fingertips
-    closer than the object's width, and that brings the object closer to the palm is taken;
-    if none brings it closer, the first that moves at all. Ends at form closure, when nothing
-    moves, or after ``max_steps``.
+    Every step first tries the paper's squeeze, both fingers closing at equal rates by ``dq``.
+    It is taken unless it jams the hand or has not brought the object closer to the palm than
+    ever before (:func:`palm_distance`) for ``PATIENCE`` steps. Then the alternatives are
+    simulated: one finger leading or alone, both fingers turning the same way (rolling the
+    object past a fold where the squeeze wedges it), half-size increments, each also followed
+    by a squeeze (letting go a little to get out of a wedge); the best that sets a new record
+    is taken, so the phase cannot cycle. An increment is refused if it drops the object
+    (back onto the support after it left) or, with the object off the support, opens the
+    fingertips from closer than the object's width to wider (Toussaint's no-drop condition,
+    section 3.2: while ``d < w`` the object cannot drop).
     """
     width = object_width(sim.scene)
-    candidates = [
-        (dq, -dq, 0.0),
-        (dq, -dq / 2, 0.0),
-        (dq / 2, -dq, 0.0),
-        (dq, 0.0, 0.0),
-        (0.0, -dq, 0.0),
-        (0.0, 0.0, palm_step),
-        (dq, dq, 0.0),
-        (-dq, -dq, 0.0),
-    ]
-    lifted = False
+    squeeze = np.array([dq, -dq])
+    moves = [np.array(m) * dq for m in ALTERNATIVES]
+    record, since_record = palm_distance(state), 0
+    lifted = _off_support(state)
     for _ in range(max_steps):
-        if mech.is_form_closure(state):
+        if _grasped(state):
             plan.status, plan.message = "form_closure", "form closure reached"
             return state
-        d0 = palm_distance(state)
-        fallback = None
-        for dq1, dq2, down in candidates:
-            th = state.hand[2]  # "down" moves the palm along its -y axis, toward the object
-            palm = state.hand[:3] + down * np.array([math.sin(th), -math.cos(th), 0.0])
-            nxt = sim.move_hand(
-                state, palm=palm, fingers=state.finger_angles + np.array([dq1, dq2])
-            )
-            moved = np.abs(nxt.hand - state.hand).max() > 1e-12
-            dropped = lifted and not _off_support(nxt) and _off_support(state)
-            if not moved or dropped:
-                continue
-            if (
-                _off_support(nxt)
-                and fingertip_distance(nxt) >= width
-                and not mech.is_form_closure(nxt)
-            ):
-                continue
-            if palm_distance(nxt) < d0 - 1e-9 or mech.is_form_closure(nxt):
-                break
-            fallback = fallback or nxt
+
+        chosen = None
+        nxt = sim.move_hand(state, fingers=state.finger_angles + squeeze)
+        progress = _score(nxt) < record - PROGRESS_TOL * sim.size
+        if _admissible(nxt, state, lifted, width) and (
+            progress or (not nxt.jammed and since_record < PATIENCE)
+        ):
+            chosen = [nxt]
         else:
-            if fallback is None:
-                plan.status = "stuck"
-                plan.message = "no lifting increment moves the hand without dropping the object"
-                return state
-            nxt = fallback
-        state = nxt
-        lifted = lifted or _off_support(state)
-        plan.steps.append(PlanStep("lifting", state, _grip_if_closed(state), _event_note(state)))
+            best = None
+            for m in moves:
+                a = sim.move_hand(state, fingers=state.finger_angles + m)
+                if not _admissible(a, state, lifted, width):
+                    continue
+                seq = [a]
+                if not _grasped(a):
+                    b = sim.move_hand(a, fingers=a.finger_angles + squeeze)
+                    if _admissible(b, a, lifted, width) and _score(b) < _score(a):
+                        seq.append(b)
+                s = _score(seq[-1])
+                if s < record - PROGRESS_TOL * sim.size and (best is None or s < best[0]):
+                    best = (s, seq)
+                    if s == -math.inf:
+                        break
+            chosen = None if best is None else best[1]
+        if chosen is None:
+            plan.status = "stuck"
+            plan.message = "no lifting increment brings the object closer to the palm"
+            return state
+        for state in chosen:
+            lifted = lifted or _off_support(state)
+            plan.steps.append(
+                PlanStep("lifting", state, _grip_if_closed(state), _event_note(state))
+            )
+        if palm_distance(state) < record - PROGRESS_TOL * sim.size:
+            record, since_record = palm_distance(state), 0
+        else:
+            since_record += 1
     plan.status, plan.message = "stuck", f"no form closure after {max_steps} lifting steps"
     return state
+
+
+def _admissible(nxt: State, prev: State, lifted: bool, width: float) -> bool:
+    """The hand moved, the object was not dropped, and once the fingertips are closer than the
+    object's width with the object off the support they stay so (unless the grasp closed)."""
+    if np.abs(nxt.hand - prev.hand).max() <= 1e-12:
+        return False
+    if (lifted or _off_support(prev)) and not _off_support(nxt):
+        return False
+    opened = fingertip_distance(prev) < width <= fingertip_distance(nxt)
+    return _grasped(nxt) or not (_off_support(nxt) and opened)
+
+
+def _score(state: State) -> float:
+    """Lifting progress measure (lower is better): the object's distance below the palm."""
+    return -math.inf if _grasped(state) else palm_distance(state)
+
+
+def _grasped(state: State) -> bool:
+    """Form closure with the object off the support: the goal of lifting."""
+    return _off_support(state) and len(state.contacts) >= 4 and mech.is_form_closure(state)
 
 
 def _event_note(state: State) -> str:
@@ -533,7 +656,7 @@ def grip_curves(sim: Simulator, state: State, half_width: float = 0.15, n: int =
 
 
 # ---------------------------------------------------------------------- the whole plan
-def plan_grasp(scene, sim: Simulator | None = None, dq: float = 0.01, adjust: bool = True) -> Plan:
+def plan_grasp(scene, sim: Simulator | None = None, dq: float = 0.02, adjust: bool = True) -> Plan:
     """Run the three phases on a scene (a Scene, bundled name, path or dict)."""
     t0 = time.process_time()
     sim = sim or Simulator(scene)
@@ -554,23 +677,30 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool) -> None:
             "both tippability regions are empty: the object cannot be lifted without friction"
         )
         return
+    placements = []
     found = tipping_placement(sim)
     if found is not None:
-        state, side = found
-        plan.placement = f"tippability ({side} region)"
-    else:
-        state = centred_placement(sim)
-        plan.placement = "centred"
-        tips, _ = squeeze_tips(sim, state)
-        if not tips:
-            plan.steps.append(PlanStep("pre-liftoff", state, math.nan, "not tippable"))
-            plan.status = "not_tippable"
-            plan.message = (
-                "no tipping placement: squeezing the centred hand does not move the object"
-            )
-            return
-    plan.steps.append(PlanStep("pre-liftoff", state, _grip_if_closed(state), plan.placement))
-    state = lift(sim, state, plan, dq)
-    if plan.status != "form_closure" or not adjust:
+        placements.append((found[0], f"tippability ({found[1]} region)"))
+    centred = centred_placement(sim)
+    if squeeze_tips(sim, centred)[0]:
+        placements.append((centred, "centred"))
+    if not placements:
+        plan.steps.append(PlanStep("pre-liftoff", centred, math.nan, "not tippable"))
+        plan.status = "not_tippable"
+        plan.message = "no tipping placement: squeezing the centred hand does not move the object"
         return
-    adjust_grip(sim, state, plan)
+    failed = []
+    for state, placement in placements:  # re-place the hand if lifting from one gets stuck
+        plan.steps = [PlanStep("pre-liftoff", state, _grip_if_closed(state), placement)]
+        plan.placement = placement
+        state = lift(sim, state, plan, dq)
+        if plan.success:
+            break
+        failed.append(f"from the {placement} placement: {plan.message}")
+    if not plan.success:
+        plan.message = "; ".join(failed)
+        return
+    if failed:
+        plan.message += f" (after re-placement; {'; '.join(failed)})"
+    if adjust:
+        adjust_grip(sim, state, plan)
