@@ -7,8 +7,8 @@ Every measurement runs in a fresh ``python`` subprocess (the same interpreter an
   imports gymnasium, numpy and scipy), ``gymnasium.make("FrictionlessGrasp-v0")``, the first
   ``reset`` and the first ``step`` (where any compile-on-first-call cost would show);
   median of ``repeat`` processes, CartPole-v1's ``make`` for comparison;
-* one env process: peak RSS (``ru_maxrss``) after the imports, after ``make`` and after
-  ``steps`` random-action steps;
+* one env process: peak RSS (``VmHWM``, which ``exec`` resets, unlike ``ru_maxrss``) after
+  the imports, after ``make`` and after ``steps`` random-action steps;
 * eight workers: ``gymnasium.make_vec(..., vectorization_mode="async")`` with the ``fork``
   start method (and ``spawn`` unless quick); sum over the workers of their peak RSS
   (``VmHWM``) and of their proportional set size (PSS, shared pages split between
@@ -39,16 +39,19 @@ t0 = time.perf_counter(); import grasp_env; out["import grasp_env"] = time.perf_
 t0 = time.perf_counter(); env = gym.make("FrictionlessGrasp-v0")
 out["make FrictionlessGrasp-v0"] = time.perf_counter() - t0
 t0 = time.perf_counter(); env.reset(seed=0); out["first reset"] = time.perf_counter() - t0
-a = env.action_space.low * 0
-t0 = time.perf_counter(); env.step(a); out["first step"] = time.perf_counter() - t0
+a = env.action_space.high
+t0 = time.perf_counter(); env.step(a); out["first step (fingers close)"] = time.perf_counter() - t0
 t0 = time.perf_counter(); env.step(a); out["second step"] = time.perf_counter() - t0
 print(json.dumps(out))
 """
 
 ONE_ENV = """
-import json, resource, sys
+import json, sys
 import numpy as np
-def peak(): return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+def peak():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
 out = {"python": peak()}
 import gymnasium as gym, grasp_env
 out["after imports"] = peak()
@@ -66,7 +69,7 @@ print(json.dumps(out))
 """
 
 WORKERS = """
-import json, resource, sys
+import json, sys
 import numpy as np
 import gymnasium as gym, grasp_env
 steps, n, context = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
@@ -89,7 +92,7 @@ out = {
     "workers peak RSS sum": sum(status(p, "VmHWM:") for p in pids),
     "workers peak RSS max": max(status(p, "VmHWM:") for p in pids),
     "workers PSS sum": sum(pss(p) for p in pids),
-    "parent peak RSS": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    "parent peak RSS": status("self", "VmHWM:"),
 }
 envs.close()
 print(json.dumps(out))
@@ -157,7 +160,7 @@ def run(
         "",
         *table(["package", "time (ms)"], [(k, f"{v * 1e3:.0f}") for k, v in imports.items()]),
         "",
-        f"## One env process: peak RSS (`ru_maxrss`), {steps} random-action steps",
+        f"## One env process: peak RSS (`VmHWM`), {steps} random-action steps",
         "",
         *table(["point", "peak RSS (MiB)"], [(k, f"{v:.1f}") for k, v in one.items()]),
         "",
