@@ -155,6 +155,7 @@ def profile(work: Callable[[], object], units: int) -> dict:
         "units": units,
         "plain_us": plain * 1e6,
         "profiled_us": sum(seconds.values()) / units * 1e6,
+        "calls": sum(st[1] for st in stats.values()) / units,
         "categories": {k: v / units * 1e6 for k, v in seconds.items()},
         "top": [
             (f"{Path(f[0]).name}:{f[1]}({f[2]})", s[1] / units, s[2] / units * 1e6) for f, s in top
@@ -187,7 +188,8 @@ def _section(title: str, unit: str, res: dict, before: dict | None) -> list[str]
     return [
         f"## {title}",
         "",
-        plain + f"; profiled: {total:,.0f} us/{unit}.",
+        plain + f"; profiled: {total:,.0f} us/{unit}; {res['calls']:,.0f} function calls "
+        f"(Python and C) per {unit}.",
         "",
         *table(header, rows),
         "",
