@@ -1,0 +1,355 @@
+"""The paper's scripted planner: a command that plans and draws a grasp, and a policy for the env.
+
+Command (issue 4)::
+
+    python -m agents.scripted --scene fig13 --out DIR
+
+plans a grasp with :func:`grasp_env.planner.plan_grasp` and writes into ``DIR``:
+``filmstrip.png`` (numbered frames like the paper's Fig. 13: hand, object, contacts with force
+arrows, phase per frame), ``grip_branches.png`` (``y*`` against the first finger's angle on
+every four-contact branch through the final grasp, like Fig. 14), ``plan.gif`` (the whole
+plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase).
+It prints a summary and exits with status 0 on form closure, 1 if the plan fails (3 if the
+object cannot be lifted without friction), 2 on bad arguments. The images need the ``viz``
+extra (matplotlib, imageio).
+
+Policy (issue 5)::
+
+    policy = ScriptedPolicy(env)
+    obs, info = env.reset()
+    policy.reset(obs, info)
+    action = policy.act(obs)
+
+plans from the env's current state with the planner's lifting and grip-adjustment phases
+(palm fixed, so it works with ``palm_control`` False or True) and replays the plan as scaled
+env actions, splitting increments larger than one action into several steps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from grasp_env import mechanics as mech
+from grasp_env import planner
+from grasp_env.scene import bundled_scenes, load_scene
+from grasp_env.simulator import Simulator
+
+#: Frames of the filmstrip (the paper's Fig. 13 has 15) and its layout.
+FILMSTRIP_FRAMES = 15
+FILMSTRIP_COLUMNS = 5
+FRAME_SIZE = (320, 240)
+GIF_SIZE = (320, 240)
+GIF_FRAME_MS = 120
+#: Half-width (rad) of the finger-1 range of the Fig. 14 plot about the final grasp.
+BRANCH_HALF_WIDTH = 0.15
+#: Object pose deviation (relative to the object's size) from the plan that makes the
+#: policy re-plan from the env's state.
+REPLAN_TOL = 1e-4
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_TIPPABLE = 0, 1, 2, 3
+
+
+# ---------------------------------------------------------------------- outputs
+def plan_to_dict(plan: planner.Plan) -> dict:
+    """The plan as JSON-ready data: status, phases and every step's state."""
+    steps = []
+    for i, st in enumerate(plan.steps):
+        s = st.state
+        steps.append(
+            {
+                "index": i,
+                "phase": st.phase,
+                "note": st.note,
+                "palm": s.palm_pose.tolist(),
+                "fingers": s.finger_angles.tolist(),
+                "object_pose": s.object_pose.tolist(),
+                "contacts": [
+                    {
+                        "body": c.body,
+                        "kind": c.kind,
+                        "point": c.point.tolist(),
+                        "normal": c.normal.tolist(),
+                        "force": float(c.force),
+                    }
+                    for c in s.contacts
+                ],
+                "form_closure": bool(mech.is_form_closure(s)),
+                "grip": st.grip if math.isfinite(st.grip) else None,
+            }
+        )
+    return {
+        "status": plan.status,
+        "message": plan.message,
+        "placement": plan.placement,
+        "cpu_time": plan.cpu_time,
+        "phases": {k: list(v) for k, v in plan.phase_bounds().items()},
+        "form_closure_step": plan.form_closure_step(),
+        "steps": steps,
+    }
+
+
+def _frame_indices(plan: planner.Plan, n: int) -> list[int]:
+    """``n`` step indices spread over the plan, always with the phase boundaries, the first
+    form-closure step and the last step."""
+    last = len(plan.steps) - 1
+    keep = {0, last}
+    for a, b in plan.phase_bounds().values():
+        keep |= {a, b}
+    fc = plan.form_closure_step()
+    if fc is not None:
+        keep.add(fc)
+    for x in np.linspace(0, last, n):
+        if len(keep) >= n:
+            break
+        keep.add(round(float(x)))
+    return sorted(keep)
+
+
+def _caption(plan: planner.Plan, i: int, weight: float) -> str:
+    st = plan.steps[i]
+    text = f"{i}: {st.phase}"
+    if math.isfinite(st.grip):
+        text += f", y* = {st.grip / weight:.3f} W"
+    return text
+
+
+def write_filmstrip(plan: planner.Plan, path: Path) -> list[int]:
+    """Numbered frames of the plan in a grid (like the paper's Fig. 13); returns the steps."""
+    from grasp_env.render import Renderer
+
+    idx = _frame_indices(plan, FILMSTRIP_FRAMES)
+    weight = plan.steps[0].state.scene.object_weight
+    renderer = Renderer(*FRAME_SIZE)
+    try:
+        frames = [renderer.draw(plan.steps[i].state, _caption(plan, i, weight)) for i in idx]
+    finally:
+        renderer.close()
+    cols = min(FILMSTRIP_COLUMNS, len(frames))
+    rows = math.ceil(len(frames) / cols)
+    h, w, _ = frames[0].shape
+    sheet = np.full((rows * (h + 4), cols * (w + 4), 3), 255, np.uint8)
+    for k, f in enumerate(frames):
+        r, c = divmod(k, cols)
+        sheet[r * (h + 4) : r * (h + 4) + h, c * (w + 4) : c * (w + 4) + w] = f
+    _save_png(sheet, path)
+    return idx
+
+
+def _save_png(image: np.ndarray, path: Path) -> None:
+    imageio = _viz("imageio.v2")
+    imageio.imwrite(path, image)
+
+
+def write_gif(plan: planner.Plan, path: Path) -> None:
+    """Animated GIF of every step of the plan."""
+    from grasp_env.render import Renderer
+
+    imageio = _viz("imageio.v2")
+    weight = plan.steps[0].state.scene.object_weight
+    renderer = Renderer(*GIF_SIZE)
+    try:
+        frames = [
+            renderer.draw(st.state, _caption(plan, i, weight)) for i, st in enumerate(plan.steps)
+        ]
+    finally:
+        renderer.close()
+    imageio.mimsave(path, frames, duration=GIF_FRAME_MS, loop=0)
+
+
+def write_branch_plot(sim: Simulator, plan: planner.Plan, path: Path) -> list[dict]:
+    """``y*`` against ``q1`` on every four-contact branch through the final grasp (Fig. 14),
+    with the grip-adjustment steps as squares; returns the curves."""
+    plt = _viz("matplotlib.pyplot")
+    final = plan.steps[-1].state
+    curves = planner.grip_curves(sim, final, half_width=BRANCH_HALF_WIDTH)
+    weight = final.scene.object_weight
+    fig, ax = plt.subplots(figsize=(6.0, 4.0), dpi=100)
+    for c in curves:
+        if not c["q1"]:
+            continue
+        dropped = ", ".join(str(k + 1) for k in c["dropped"]) or "none"
+        style = "-" if c["form_closure"] else ":"
+        label = f"contact {dropped} broken" + ("" if c["form_closure"] else " (no form closure)")
+        ax.plot(c["q1"], np.asarray(c["grip"]) / weight, style, label=label)
+    adj = [(st.state.hand[3], st.grip / weight) for st in plan.steps if st.phase != "lifting"]
+    adj = [p for p in adj if math.isfinite(p[1])]
+    if adj:
+        q, y = zip(*adj, strict=True)
+        ax.plot(q, y, "ks", markerfacecolor="none", label="grip-adjustment steps")
+    ax.axvline(final.hand[3], color="0.6", lw=0.8)
+    ax.set_xlabel("finger 1 angle q1 (rad)")
+    ax.set_ylabel("grip objective y* / object weight")
+    ax.set_title(f"{final.scene.name}: four-contact branches through the final grasp")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return curves
+
+
+def _viz(module: str):
+    """Import an optional plotting module, with a clear error if the extra is missing."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise SystemExit(
+            f"error: {module.split('.')[0]} is needed for the images; "
+            "install the viz extra: pip install 'grasp_env[viz]'"
+        ) from exc
+
+
+def summary(plan: planner.Plan) -> str:
+    """Phase boundaries, the form-closure step, the final contacts and y*, the CPU time."""
+    lines = [f"status: {plan.status} ({plan.message})"]
+    if plan.placement:
+        lines.append(f"pre-liftoff placement: {plan.placement}")
+    for phase, (a, b) in plan.phase_bounds().items():
+        lines.append(f"  {phase:16s} steps {a:4d} .. {b:4d}")
+    fc = plan.form_closure_step()
+    lines.append(f"form closure at step: {fc if fc is not None else 'never'}")
+    if plan.steps:
+        final = plan.steps[-1]
+        bodies = ", ".join(f"{c.body} ({c.kind})" for c in final.state.contacts)
+        lines.append(f"final contacts: {len(final.state.contacts)}: {bodies}")
+        weight = final.state.scene.object_weight
+        if math.isfinite(final.grip):
+            lines.append(f"final y*: {final.grip:.6g} ({final.grip / weight:.4f} object weights)")
+    lines.append(f"CPU time: {plan.cpu_time:.2f} s")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.scripted",
+        description="Plan a frictionless enveloping grasp with the paper's three-phase planner "
+        "and write a filmstrip, a Fig. 14-style branch plot, a GIF and the plan as JSON.",
+        epilog=f"bundled scenes: {', '.join(bundled_scenes())}",
+    )
+    parser.add_argument("--scene", required=True, help="bundled scene name or YAML path")
+    parser.add_argument("--out", required=True, type=Path, help="output directory")
+    parser.add_argument(
+        "--dq", type=float, default=0.02, help="finger increment of lifting (rad, default 0.02)"
+    )
+    args = parser.parse_args(argv)
+    if not (math.isfinite(args.dq) and 0 < args.dq <= 0.5):
+        parser.error(f"--dq must be in (0, 0.5], got {args.dq!r}")
+    try:
+        scene = load_scene(args.scene)
+    except (ValueError, OSError) as exc:
+        parser.error(f"--scene {args.scene!r}: {exc}")
+    if args.out.exists() and not args.out.is_dir():
+        parser.error(f"--out {str(args.out)!r} exists and is not a directory")
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    sim = Simulator(scene)
+    plan = planner.plan_grasp(scene, sim=sim, dq=args.dq)
+    print(f"scene: {scene.name}")
+    if plan.status == "not_tippable":
+        print(f"cannot be lifted without friction: {plan.message}")
+        return EXIT_NOT_TIPPABLE
+    with open(args.out / "plan.json", "w") as f:
+        json.dump({"scene": scene.name, **plan_to_dict(plan)}, f, indent=1)
+    frames = write_filmstrip(plan, args.out / "filmstrip.png")
+    write_gif(plan, args.out / "plan.gif")
+    written = ["plan.json", "filmstrip.png", "plan.gif"]
+    if plan.success:
+        write_branch_plot(sim, plan, args.out / "grip_branches.png")
+        written.append("grip_branches.png")
+    print(summary(plan))
+    print(f"filmstrip frames (plan steps): {frames}")
+    print(f"wrote {', '.join(written)} to {args.out}")
+    return EXIT_OK if plan.success else EXIT_FAILED
+
+
+# ---------------------------------------------------------------------- env policy
+class ScriptedPolicy:
+    """The paper's planner as a policy acting only through ``FrictionlessGrasp-v0`` actions.
+
+    At :meth:`reset` it plans from the env's current state (exact knowledge of the scene and
+    state, as the paper assumes): close the fingers until both touch, then the planner's
+    lifting and grip-adjustment phases, all with the palm fixed where the env put it. It then
+    replays the planned hand configurations as scaled actions, splitting an increment larger
+    than one action (``max_finger_step``) over several steps, and re-plans from the env's
+    state whenever the object is not where the plan expects it. Once the plan is done it
+    holds still (zero actions).
+
+    Works with ``palm_control`` False or True (the palm actions stay zero) from the
+    ``"scene"`` start when the scene's palm is over the object (as in every bundled scene),
+    and from the ``"preliftoff"`` start.
+
+    Args:
+        env: a ``FrictionlessGraspEnv``, possibly wrapped.
+        dq: finger increment of the lifting phase (rad).
+    """
+
+    def __init__(self, env, dq: float = 0.02) -> None:
+        self.env = env
+        self.dq = dq
+        self.plan: planner.Plan | None = None
+        self._waypoints: list[tuple[np.ndarray, np.ndarray]] = []  # (hand, object pose)
+        self._chunk: list[np.ndarray] = []  # actions left to reach the current waypoint
+        self._expected: np.ndarray | None = None  # object pose planned at that waypoint
+
+    def reset(self, obs=None, info=None) -> None:
+        """Plan from the env's current state (call after every ``env.reset``)."""
+        self._replan()
+
+    def _replan(self) -> None:
+        base = self.env.unwrapped
+        sim, state = base._sim, base._state
+        plan = planner.Plan()
+        plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
+        if not planner._both_touch(state):
+            state = planner.close_until_touch(sim, state)
+            plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "closing"))
+        state = planner.lift(sim, state, plan, self.dq)
+        if plan.success:
+            planner.adjust_grip(sim, state, plan)
+        self.plan = plan
+        self._waypoints = [(st.state.hand, st.state.object_pose) for st in plan.steps[1:]]
+        self._chunk, self._expected = [], None
+
+    def act(self, obs=None) -> np.ndarray:
+        """The next action, float32 in [-1, 1], of the env's action shape."""
+        base = self.env.unwrapped
+        if not self._chunk:
+            state = base._state
+            if self._expected is not None:
+                off = np.abs(state.object_pose - self._expected).max()
+                self._expected = None
+                if off > REPLAN_TOL * base._sim.size:
+                    self._replan()
+            if self._waypoints:
+                hand, self._expected = self._waypoints.pop(0)
+                self._chunk = self._actions(hand - state.hand)
+        if not self._chunk:
+            return np.zeros(base.action_space.shape, np.float32)
+        return self._chunk.pop(0)
+
+    def _actions(self, dh: np.ndarray) -> list[np.ndarray]:
+        """Equal actions that together move the hand by ``dh`` (shape (5,))."""
+        base = self.env.unwrapped
+        w = base._state.scene.palm.width
+        a = np.zeros(5)
+        a[0] = dh[3] / base.max_finger_step
+        a[1] = -dh[4] / base.max_finger_step
+        a[2:] = dh[:3] / (base.max_palm_step * np.array([w, w, 1.0]))
+        if not base.palm_control:
+            a = a[:2]
+        n = max(1, math.ceil(float(np.abs(a).max()) - 1e-9))
+        return [(a / n).astype(np.float32) for _ in range(n)]
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    sys.exit(main())
