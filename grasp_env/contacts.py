@@ -241,11 +241,12 @@ def _locally_valid(pl: Placement, key: ContactKey, tol: float) -> bool:
     return True
 
 
-def detect(pl: Placement, tol: float) -> list[ContactKey]:
+def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[ContactKey]:
     """Contacts at a placement: vertex-edge pairs with ``|gap| <= tol`` whose edge separates.
 
     An edge lying along an edge yields its two end contacts. Coincident duplicates (the same
-    point and normal seen as both an edge and a tip contact) keep the edge-kind one.
+    point and normal seen as both an edge and a tip contact) keep the edge-kind one, unless
+    it is in ``exclude`` (a contact the simulator has just released: its twin takes over).
     """
     margin = 10.0 * tol
     keys: list[ContactKey] = []
@@ -254,7 +255,7 @@ def detect(pl: Placement, tol: float) -> list[ContactKey]:
         candidate_gaps(pl, broad_phase(pl, margin), slack=tol), key=lambda c: c[0][1]
     )  # edges first
     for key, gap, _t in cands:
-        if abs(gap) > tol or not _locally_valid(pl, key, tol):
+        if abs(gap) > tol or key in exclude or not _locally_valid(pl, key, tol):
             continue
         p, n, *_ = pl.evaluate(key)
         if any(np.abs(p - p2).max() <= 2 * tol and n @ n2 > 1 - 1e-9 for p2, n2 in seen):

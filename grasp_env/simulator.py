@@ -192,7 +192,7 @@ class Simulator:
                 plan, override = override, None
             else:
                 pl = ct.Placement(self.scene, q, h)
-                keys = [k for k in ct.detect(pl, self.tol) if k not in banned]
+                keys = ct.detect(pl, self.tol, exclude=banned)
                 plan = self._plan(pl, keys, h, dh, allow_fall=not stuck_fall)
             stuck_fall = False
             if plan == "jam":
@@ -470,13 +470,14 @@ class Simulator:
         if E:
             W = mech.V_ob(P, N, q[:2]).T
             scale = self.size / self.weight
-            if len(E) <= 3 and np.linalg.matrix_rank(W, tol=1e-10) == len(E):
-                lam, *_ = np.linalg.lstsq(W, mech.gravity_wrench(self.scene), rcond=None)
-                res = float(np.linalg.norm(W @ lam - mech.gravity_wrench(self.scene)))
+            g = mech.gravity_wrench(self.scene)
+            lam = _independent_forces(W, g) if len(E) <= 3 else None
+            if lam is not None:
+                res = float(np.linalg.norm(W @ lam - g))
                 i = int(np.argmin(lam))
                 out[("lost_contact", E[i])] = -lam[i] * scale
             else:
-                lam, res = nnls(W, mech.gravity_wrench(self.scene))
+                lam, res = nnls(W, g)
             out[("equilibrium", None)] = res * scale - self.tol
         return out
 
@@ -746,6 +747,21 @@ def _event(trigger: tuple, s: float) -> Event:
     if kind == "overlap":  # edges about to cross: a new contact (vertex-vertex)
         kind, key = "new_contact", None
     return Event(kind, s, (key,) if key is not None else ())
+
+
+def _independent_forces(W: np.ndarray, g: np.ndarray) -> np.ndarray | None:
+    """Least-squares forces ``lam`` with ``W lam ~ g`` for up to three contact wrenches (the
+    columns of ``W``), or None when the wrenches are dependent. Three wrenches (the common
+    case, run in every consistency check) are solved directly after a unit-column volume
+    test (> 1e-10), without the SVD that the rank test of fewer columns needs."""
+    if W.shape[1] == 3:
+        norms = np.sqrt((W * W).sum(axis=0))
+        if norms.min() == 0.0 or abs(np.linalg.det(W / norms)) <= 1e-10:
+            return None
+        return np.linalg.solve(W, g)
+    if np.linalg.matrix_rank(W, tol=1e-10) < W.shape[1]:
+        return None
+    return np.linalg.lstsq(W, g, rcond=None)[0]
 
 
 def _arrays(pl: ct.Placement, keys: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -545,43 +545,9 @@ def run_random_path(path_index: int, seed: int = 20240611) -> None:
 N_DEFAULT_PATHS = 27  # 3 per bundled scene
 N_SLOW_PATHS = 300
 
-#: Paths that fail with the simulator as of commit 8166210 (reported to the lead with
-#: reproducers); xfail(strict=False) so that fixes show up as XPASS.
-_FALSE_JAM = (
-    "jam reported where the velocity LP for the continued hand motion is feasible with a "
-    "moderate object velocity (first-order steps along it stay within tolerance): the hand "
-    "could go on (often right after a lost contact leaves two fingertip contacts)"
-)
-_FOLD = (
-    "jam at a fold (fingertip normals exactly opposite): the returned contact forces are "
-    "1e9..5e12 x weight and leave an equilibrium residual of 1e-6..5e-4 x weight"
-)
-_OVERLAP = (
-    "after finger 1's tip meets the triangle's apex (vertex-vertex), the jammed state has "
-    "finger 1 overlapping the object by 6.1e-4 with no vertex inside the other body"
-)
-KNOWN_FAILURES = {
-    **dict.fromkeys(
-        (6, 16, 32, 34, 70, 81, 111, 126, 140, 151, 160, 180, 192, 198, 221, 225, 228, 237,
-         255, 261, 264, 288, 292, 312),
-        _FALSE_JAM,
-    ),
-    **dict.fromkeys((28, 168, 249), _FOLD),
-    139: _OVERLAP,
-}  # fmt: skip
-
 
 def path_params(indices: range) -> list:
-    return [
-        pytest.param(
-            i,
-            id=f"path{i}-{SCENES[i % len(SCENES)]}",
-            marks=[pytest.mark.xfail(strict=False, reason=KNOWN_FAILURES[i])]
-            if i in KNOWN_FAILURES
-            else [],
-        )
-        for i in indices
-    ]
+    return [pytest.param(i, id=f"path{i}-{SCENES[i % len(SCENES)]}") for i in indices]
 
 
 @pytest.mark.parametrize("path_index", path_params(range(N_DEFAULT_PATHS)))
