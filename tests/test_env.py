@@ -18,12 +18,9 @@ import pytest
 import grasp_env
 from grasp_env import geometry as geo
 from grasp_env.envs import ENV_ID
-from grasp_env.envs.frictionless_grasp import (
-    FrictionlessGraspEnv,
-    _observation_bounds,
-    close_until_touch,
-)
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv, _observation_bounds
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_convex_polygon
+from grasp_env.planner import close_until_touch
 
 PALM_CONTROL = [False, True]
 PALM_IDS = ["fingers-only", "palm-control"]

@@ -15,6 +15,7 @@ from grasp_env import kinematics as kin
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_shape_scene
 from grasp_env.errors import SolverError
 from grasp_env.mechanics import grip_objective, is_form_closure
+from grasp_env.planner import centred_placement
 from grasp_env.scene import Scene, load_scene
 from grasp_env.simulator import SimulationError, Simulator
 from grasp_env.state import State
@@ -33,9 +34,6 @@ FORCE_MAX = 10.0  #: total contact force on a body, in object weights
 GRIP_MAX = 10.0  #: y* in object weights (``y_max``)
 HEIGHT_MIN, HEIGHT_MAX = -1.0, OBJECT_Y_MAX  #: object centre height above its start
 
-#: Finger step of the pre-liftoff closing motion (rad); the first touch is then located
-#: exactly from the simulator's events.
-PRELIFTOFF_STEP = 0.1
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
 #: (rad), finger angles (rad).
 RANDOM_PALM_XY, RANDOM_PALM_THETA, RANDOM_FINGER = 0.02, 0.05, 0.1
@@ -138,10 +136,13 @@ class FrictionlessGraspEnv(gym.Env):
     The object rests at its scene placement. The hand starts (``start`` kwarg)
 
     * ``"scene"``: at the scene's hand configuration (the paper's set-up in ``fig13``);
-    * ``"preliftoff"``: palm centred over the object, parallel to the support, just high
-      enough that the longer finger cannot touch it, fingers closed at equal rates (by the
-      simulator, in steps of 0.1 rad, the first touch located exactly) until each finger
-      touches the object or the fingers jam;
+    * ``"preliftoff"``: the planner's centred pre-liftoff placement
+      (:func:`grasp_env.planner.centred_placement`): palm centred over the object, parallel
+      to the support, just high enough that the longer finger cannot touch it, fingers
+      closed at equal rates (by the simulator, in steps of 0.1 rad, the first touch located
+      exactly) until each finger touches the object or the fingers jam; if a finger cannot
+      reach the object from there, the palm is lowered in steps of 0.05 w (fingers opened to
+      clear the support) until both can;
     * ``"random"``: the ``"preliftoff"`` configuration perturbed uniformly by up to
       ``0.02 w`` in palm x and y, 0.05 rad in palm angle and 0.1 rad in each finger angle,
       redrawn until the hand is clear of the object and the support.
@@ -418,11 +419,11 @@ class FrictionlessGraspEnv(gym.Env):
         if key is not None and key in self._preliftoff_cache:
             return self._preliftoff_cache[key], None
         scene = sim.scene
-        state = sim.settle(scene.object.start_pose, hand_setup(scene))
         error = None
         try:
-            state = close_until_touch(sim, state)
+            state = centred_placement(sim)
         except (SimulationError, SolverError) as exc:
+            state = sim.settle(scene.object.start_pose, hand_setup(scene))
             error = f"pre-liftoff closing stopped: {exc}"
         if key is not None and error is None:
             self._preliftoff_cache[key] = state
@@ -651,44 +652,6 @@ NAN = _NaN()
 
 
 # ---------------------------------------------------------------------- helpers
-def close_until_touch(sim: Simulator, state: State, step: float = PRELIFTOFF_STEP) -> State:
-    """Close both fingers at equal rates until each has touched the object or they jam.
-
-    The fingers move in steps of ``step`` rad; a finger that touches stops there (its first
-    touch located exactly from the simulator's ``new_contact`` event) while the other closes
-    on. Stops too when both fingers are at their closing limits or the hand is blocked.
-    """
-    lim = sim.scene.joint_limits
-    closing = np.array([1.0, -1.0])  # finger 1 closes as q1 grows, finger 2 as q2 falls
-    for _ in range(int(4 * math.pi / step) + 4):
-        done = [_touches(state, i) for i in range(2)]
-        if all(done) or state.jammed or state.hand_blocked:
-            break
-        q = state.finger_angles
-        target = q.copy()
-        for i in range(2):
-            if not done[i]:
-                target[i] = np.clip(q[i] + closing[i] * step, lim[i, 0], lim[i, 1])
-        if np.array_equal(target, q):
-            break
-        new = sim.move_hand(state, fingers=target)
-        touch = [
-            e.s
-            for e in new.events
-            if e.kind == "new_contact"
-            and any(k[0] in (geo.FINGER1, geo.FINGER2) for k in e.contacts)
-        ]
-        if touch and min(touch) < 1.0:
-            new = sim.move_hand(state, fingers=q + min(touch) * (target - q))
-        state = new
-    return state
-
-
-def _touches(state: State, finger: int) -> bool:
-    name = f"finger{finger + 1}"
-    return any(c.body == name for c in state.contacts)
-
-
 def _in_palm_frame(state: State) -> np.ndarray:
     """Object pose ``(x, y, theta)`` in the palm frame."""
     x_p, y_p, th_p = state.palm_pose
@@ -808,4 +771,4 @@ def _shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float
     return out
 
 
-__all__ = ["FrictionlessGraspEnv", "close_until_touch"]
+__all__ = ["FrictionlessGraspEnv"]

@@ -16,6 +16,7 @@ import numpy as np
 
 from grasp_env import geometry as geo
 from grasp_env.errors import SceneError
+from grasp_env.planner import centred_hand
 from grasp_env.scene import Scene, load_scene
 
 #: Default ranges of the shape randomizer: vertex count (inclusive), size (the polygon's
@@ -27,10 +28,6 @@ DEFAULT_SHAPE_RANGES: dict[str, tuple[float, float]] = {
     "aspect": (1.0, 3.0),
     "mass": (0.05, 0.5),
 }
-
-#: Gap between the hanging tip of the longer finger and the support, in palm widths (the
-#: paper's "just high enough so that the longer finger could not touch the support").
-PALM_CLEARANCE = 0.01
 
 #: A supporting edge is stable when the centroid projects onto it at least this fraction of
 #: its length away from both ends.
@@ -92,11 +89,8 @@ def random_convex_polygon(
 
 
 def hand_setup(scene: Scene, object_vertices_W: np.ndarray | None = None) -> np.ndarray:
-    """The paper's pre-liftoff hand placement for a scene's object at its scene placement.
-
-    Palm centred over the object's centroid, parallel to the support, at the height where the
-    hanging longer finger clears the support by ``PALM_CLEARANCE`` palm widths (higher if the
-    object is taller); fingers hanging straight down (``q = -pi/2``, clipped to the limits).
+    """The paper's pre-liftoff hand placement for a scene's object at its scene placement:
+    :func:`grasp_env.planner.centred_hand` at the paper's palm height.
 
     Args:
         scene: the scene (its hand and, unless given, its object).
@@ -105,12 +99,7 @@ def hand_setup(scene: Scene, object_vertices_W: np.ndarray | None = None) -> np.
     Returns:
         Hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,).
     """
-    v = scene.object.vertices_W0 if object_vertices_W is None else object_vertices_W
-    w = scene.palm.width
-    x = float(geo.polygon_centroid(v)[0])
-    y = max(max(f.length for f in scene.fingers), float(v[:, 1].max())) + PALM_CLEARANCE * w
-    q = np.clip(np.full(2, -0.5 * math.pi), scene.joint_limits[:, 0], scene.joint_limits[:, 1])
-    return np.array([x, y, 0.0, q[0], q[1]])
+    return centred_hand(scene, object_vertices_W=object_vertices_W)
 
 
 def scene_to_dict(scene: Scene) -> dict[str, Any]:
