@@ -138,7 +138,10 @@ class Simulator:
         s_end, blocked = self._support_limit(h0, h1)
         if blocked:
             events.append(Event("hand_blocked", s_end))
-        q, s_reached, jammed = self._advance(state.object_pose.copy(), h0, h1, s_end, events)
+        touching = [c.key for c in state.contacts]  # detected at (q, h0) by _make_state
+        q, s_reached, jammed = self._advance(
+            state.object_pose.copy(), h0, h1, s_end, events, touching
+        )
         h = h0 + s_reached * (h1 - h0)
         return self._make_state(q, h, events, jammed=jammed, blocked=blocked)
 
@@ -168,8 +171,16 @@ class Simulator:
 
     # ------------------------------------------------------------------ core loop
     def _advance(
-        self, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, s_end: float, events: list[Event]
+        self,
+        q: np.ndarray,
+        h0: np.ndarray,
+        h1: np.ndarray,
+        s_end: float,
+        events: list[Event],
+        touching: list | None = None,
     ) -> tuple[np.ndarray, float, bool]:
+        """Follow the move from ``s = 0`` to ``s_end``; ``touching`` are the contacts already
+        known at the start. Returns the object pose, the ``s`` reached and whether it jammed."""
         dh = h1 - h0
         s = 0.0
         banned: set = set()
@@ -192,7 +203,10 @@ class Simulator:
                 plan, override = override, None
             else:
                 pl = ct.Placement(self.scene, q, h)
-                keys = ct.detect(pl, self.tol, exclude=banned)
+                if touching is not None:
+                    keys, touching = touching, None
+                else:
+                    keys = ct.detect(pl, self.tol, exclude=banned)
                 plan = self._plan(pl, keys, h, dh, allow_fall=not stuck_fall)
             stuck_fall = False
             if plan == "jam":
@@ -730,12 +744,18 @@ class Simulator:
             return np.zeros(0)
         p, n, _ = _arrays(pl, keys)
         V = mech.V_ob(p, n, pl.com_W)
+        g = mech.gravity_wrench(self.scene)
+        if len(keys) <= 3:
+            # independent wrenches: the only forces in equilibrium, if non-negative
+            lam = _independent_forces(V.T, g)
+            if lam is not None and lam.min() >= 0.0 and np.abs(V.T @ lam - g).max() <= self.ftol:
+                return lam
         # min 1^T lam s.t. V^T lam = (0, W, 0), lam >= 0: the force LP with xi = -1, solved
         # through its primal (min W v_y s.t. V v >= -1) by the same motion LP as the steps.
         res = mech.motion_lp(V, -np.ones(len(keys)), self.weight, self.lp_solver)
         if res.status != "optimal":
             # held only to within the fall's tolerance: the closest non-negative forces
-            lam, _ = nnls(V.T, mech.gravity_wrench(self.scene))
+            lam, _ = nnls(V.T, g)
             return lam
         return np.maximum(res.forces, 0.0)
 
