@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import itertools
 import math
 import os
@@ -84,13 +85,16 @@ def make_policy(spec: PolicySpec, env: gym.Env) -> tuple[Callable, Callable]:
             return state["rng"].uniform(box.low, box.high).astype(np.float32)
 
         return reset, act
-    model, norm, _, _ = load_agent(spec.model_dir)
+    model, norm, _, _ = _load_agent(spec.model_dir)
 
     def act(obs):
         x = norm.normalize_obs(obs) if norm is not None else obs
         return model.predict(x, deterministic=True)[0]
 
     return (lambda obs, info, seed: None), act
+
+
+_load_agent = functools.cache(load_agent)  # once per model and process
 
 
 # ---------------------------------------------------------------------- episodes
