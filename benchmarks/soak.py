@@ -1,0 +1,658 @@
+"""Soak test of ``FrictionlessGrasp-v0``: many random-action steps on many random shapes.
+
+Every shape is a random convex polygon (3-12 vertices, diameter 5%-80% of the palm width,
+aspect up to 1:20, mass 1e-3..10, with nearly collinear vertices, very short edges, nearly
+parallel edges or slivers mixed in: :func:`stress_scene`) in the hand set-up of the fig13
+scene. Each worker process runs its share of the shapes; on each shape an env with palm
+control takes ``steps / shapes`` random actions (reset on termination), and after every step
+the returned ``info`` is checked by :func:`check_state`, an independent re-computation of the
+state's invariants (it does not use :mod:`grasp_env.geometry`, :mod:`grasp_env.kinematics` or
+:mod:`grasp_env.contacts`):
+
+* no NaN or infinity in the observation, the poses or the contacts;
+* no penetration deeper than ``contact_tol`` between the object and the support, the palm or
+  a finger (separating-axis test), and no hand vertex below the support;
+* every contact force ``>= 0``; every listed contact has ``|gap| <= contact_tol`` and a normal
+  of an edge through its point; every touching vertex-body pair is listed;
+* the object's equilibrium residual ``|sum c_i n_i + m g| (+ moment / size)`` below
+  ``EQ_RTOL`` times its weight, and no admissible descent (the velocity LP's optimum is 0).
+
+Exceptions, ``info["sim_error"]`` terminations and invariant violations are counted, and the
+first few of each are written out with the seed and shape index that reproduce them.
+
+Progress is appended to a JSON-lines checkpoint after every shape, so an interrupted run
+resumes where it stopped (same ``--seed``, ``--steps``, ``--shapes``).
+
+Usage::
+
+    python benchmarks/soak.py --quick                      # ~2,000 steps, 20 shapes
+    python benchmarks/soak.py --steps 20000 --shapes 100   # medium
+    python benchmarks/soak.py                              # the full 1,000,000 x 1,000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing as mp
+import os
+import platform
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linprog
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+#: Equilibrium residual and descent-LP optimum allowed, as a fraction of the object's weight.
+EQ_RTOL = 1e-7
+#: Slack for floating-point rounding on top of ``contact_tol``, as a fraction of the palm width.
+ROUNDING = 1e-13
+#: Shape kinds drawn by :func:`stress_polygon`.
+#: Gap between the hanging longer finger's tip (or the object's top) and the palm height,
+#: in palm widths (the paper's "just high enough" set-up).
+CLEARANCE = 0.01
+KINDS = ("plain", "collinear", "short_edge", "parallel", "sliver")
+
+
+# ---------------------------------------------------------------------------------------
+# Independent geometry (DESIGN.md section 2)
+# ---------------------------------------------------------------------------------------
+
+
+def rot(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def object_polygon_W(scene: Any, pose: np.ndarray) -> np.ndarray:
+    """Object vertices (n, 2) in the world: ``vertices_B`` turned by theta, then shifted."""
+    return scene.object.vertices_B @ rot(float(pose[2])).T + np.asarray(pose[:2], float)
+
+
+def hand_polygons_W(scene: Any, hand: np.ndarray) -> dict[str, np.ndarray]:
+    """World polygons (4, 2) of the palm and fingers for ``hand = (x, y, th, q1, q2)``, built
+    from DESIGN.md section 2: palm ``[-w/2, w/2] x [0, t]`` in P; finger i from its joint
+    ``J_i = (-+w/2, 0)`` to its tip ``J_i + L_i u_i``, thickness on the side away from the
+    inward normal (``u_1`` turned by +pi/2, ``u_2`` by -pi/2)."""
+    xp, yp, thp, q1, q2 = (float(v) for v in hand)
+    R, o = rot(thp), np.array([xp, yp])
+    w, tp = scene.palm.width, scene.palm.thickness
+    out = {"palm": np.array([[-w / 2, 0.0], [w / 2, 0.0], [w / 2, tp], [-w / 2, tp]]) @ R.T + o}
+    for i, (q, turn) in enumerate(((q1, 1.0), (q2, -1.0)), start=1):
+        f = scene.fingers[i - 1]
+        J = np.array([-w / 2 if i == 1 else w / 2, 0.0])
+        u = np.array([math.cos(q), math.sin(q)])
+        n = turn * np.array([-u[1], u[0]])
+        T = J + f.length * u
+        out[f"finger{i}"] = np.array([J, T, T - f.thickness * n, J - f.thickness * n]) @ R.T + o
+    return out
+
+
+def edges(poly: np.ndarray):
+    """``(a, b, outward unit normal)`` of every edge of a convex polygon of either orientation."""
+    area2 = sum(poly[k - 1, 0] * poly[k, 1] - poly[k, 0] * poly[k - 1, 1] for k in range(len(poly)))
+    sign = 1.0 if area2 > 0 else -1.0
+    for k in range(len(poly)):
+        a, b = poly[k], poly[(k + 1) % len(poly)]
+        d = b - a
+        yield a, b, sign * np.array([d[1], -d[0]]) / math.hypot(d[0], d[1])
+
+
+def sat_depth(a: np.ndarray, b: np.ndarray) -> float:
+    """Penetration depth of two convex polygons (separating axis theorem); < 0 when apart."""
+    depth = math.inf
+    for poly in (a, b):
+        for _, _, n in edges(poly):
+            pa, pb = a @ n, b @ n
+            depth = min(depth, min(pa.max(), pb.max()) - max(pa.min(), pb.min()))
+    return depth
+
+
+def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    d = b - a
+    t = min(1.0, max(0.0, float((p - a) @ d) / float(d @ d)))
+    return float(np.linalg.norm(p - a - t * d))
+
+
+def boundary_distance(p: np.ndarray, poly: np.ndarray) -> float:
+    return min(segment_distance(p, a, b) for a, b, _ in edges(poly))
+
+
+# ---------------------------------------------------------------------------------------
+# Invariants of a state
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class Check:
+    """Figures of one state and the invariants it violates (empty: valid)."""
+
+    penetration: float = -math.inf  # deepest overlap / palm width
+    gap: float = 0.0  # worst |gap| of a listed contact / palm width
+    residual: float = 0.0  # equilibrium residual / weight
+    descent: float = 0.0  # velocity-LP optimum / weight (negative: an admissible descent)
+    min_force: float = math.inf
+    violations: list[str] = field(default_factory=list)
+
+
+def _get(c: Any, name: str) -> Any:
+    return c[name] if isinstance(c, dict) else getattr(c, name)
+
+
+def check_state(
+    scene: Any,
+    object_pose: np.ndarray,
+    hand: np.ndarray,
+    contacts: list,
+    tol: float,
+    *,
+    descent: bool = True,
+) -> Check:
+    """Check a state against geometry and mechanics computed here.
+
+    Args:
+        scene: the state's scene (its dimensions and the object's vertices in its frame).
+        object_pose: object pose ``(x, y, theta)``, shape (3,).
+        hand: hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,).
+        contacts: the listed contacts, :class:`grasp_env.Contact` or their ``as_dict()``.
+        tol: the contact tolerance as a length (``contact_tol * palm width``).
+        descent: also solve the velocity LP for an admissible descent.
+    """
+    out = Check()
+    bad = out.violations
+    w = scene.palm.width
+    W = scene.object_weight
+    limit = tol + ROUNDING * w
+    object_pose = np.asarray(object_pose, float)
+    hand = np.asarray(hand, float)
+    if not (np.all(np.isfinite(object_pose)) and np.all(np.isfinite(hand))):
+        bad.append(f"nan: object {object_pose.tolist()}, hand {hand.tolist()}")
+        return out
+    obj = object_polygon_W(scene, object_pose)
+    size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
+    com = object_pose[:2]
+    bodies = hand_polygons_W(scene, hand)
+
+    # Penetration.
+    depth = -float(obj[:, 1].min())
+    out.penetration = depth / w
+    if depth > limit:
+        bad.append(f"penetration: object {depth:.3e} below the support")
+    for name, poly in bodies.items():
+        d = sat_depth(obj, poly)
+        out.penetration = max(out.penetration, d / w)
+        if d > limit:
+            bad.append(f"penetration: object and {name} overlap by {d:.3e}")
+        low = float(poly[:, 1].min())
+        if low < -limit:
+            bad.append(f"penetration: {name} vertex at y = {low:.3e} below the support")
+
+    # Listed contacts.
+    P = np.zeros((len(contacts), 2))
+    N = np.zeros((len(contacts), 2))
+    C = np.zeros(len(contacts))
+    for i, c in enumerate(contacts):
+        body, kind = _get(c, "body"), _get(c, "kind")
+        p = np.asarray(_get(c, "point"), float)
+        n = np.asarray(_get(c, "normal"), float)
+        f = float(_get(c, "force"))
+        P[i], N[i], C[i] = p, n, f
+        where = f"contact {body}/{kind} at {p.tolist()}"
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(n)) and math.isfinite(f)):
+            bad.append(f"nan: {where}: normal {n.tolist()}, force {f}")
+            continue
+        out.min_force = min(out.min_force, f)
+        if f < 0.0:
+            bad.append(f"force: {where}: negative force {f:.3e}")
+        if abs(float(np.linalg.norm(n)) - 1.0) > 1e-9:
+            bad.append(f"contact: {where}: normal {n.tolist()} is not a unit vector")
+            continue
+        if boundary_distance(p, obj) > limit:
+            bad.append(f"contact: {where}: point off the object boundary")
+        if body == "support":
+            gap = float(p[1])
+            if np.abs(n - (0.0, 1.0)).max() > 1e-9:
+                bad.append(f"contact: {where}: support normal {n.tolist()}")
+        elif body in bodies:
+            poly = bodies[body]
+            if boundary_distance(p, poly) > limit:
+                bad.append(f"contact: {where}: point off the {body} boundary")
+            # edge kind: an object vertex on a hand edge whose outward normal is n;
+            # tip kind: a hand vertex on an object edge whose inward normal is n.
+            vert, feature, sign = (obj, poly, 1.0) if kind == "edge" else (poly, obj, -1.0)
+            v = vert[int(np.argmin(np.linalg.norm(vert - p, axis=1)))]
+            if np.linalg.norm(v - p) > limit:
+                bad.append(f"contact: {where}: point is not a vertex of the {kind} side")
+            gaps = [
+                float(m @ (v - a))
+                for a, b, m in edges(feature)
+                if np.abs(sign * m - n).max() < 1e-9 and segment_distance(p, a, b) <= limit
+            ]
+            if not gaps:
+                bad.append(f"contact: {where}: normal {n.tolist()} is not an edge's normal there")
+                continue
+            gap = min(gaps, key=abs)
+        else:
+            bad.append(f"contact: unknown body {body!r}")
+            continue
+        out.gap = max(out.gap, abs(gap) / w)
+        if abs(gap) > limit:
+            bad.append(f"contact: {where}: |gap| {abs(gap):.3e} > tol {tol:.1e}")
+
+    # Every touching vertex-body pair is listed (a contact of that body at that point).
+    def listed(body: str, p: np.ndarray) -> bool:
+        return any(
+            _get(c, "body") == body and np.abs(np.asarray(_get(c, "point")) - p).max() <= 4 * limit
+            for c in contacts
+        )
+
+    for p in obj:
+        if p[1] <= limit and not listed("support", p):
+            bad.append(f"unlisted: object vertex {p.tolist()} touches the support")
+    for name, poly in bodies.items():
+        for p in obj:
+            if boundary_distance(p, poly) <= limit and not listed(name, p):
+                bad.append(f"unlisted: object vertex {p.tolist()} touches the {name}")
+        for p in poly:
+            if boundary_distance(p, obj) <= limit and not listed(name, p):
+                bad.append(f"unlisted: {name} vertex {p.tolist()} touches the object")
+
+    # Equilibrium: sum c_i n_i + m g = 0 and the moment about the centre of mass.
+    if not bad or all(not v.startswith("nan") for v in bad):
+        force = C @ N + np.array([0.0, -W])
+        moment = sum(ci * cross(pi - com, ni) for ci, pi, ni in zip(C, P, N, strict=True))
+        out.residual = math.hypot(force[0], force[1], moment / size) / W
+        if not out.residual <= EQ_RTOL:
+            bad.append(f"equilibrium: residual {out.residual:.3e} x weight")
+        if descent and len(contacts):
+            # min W v_y s.t. V_ob v >= 0 (twists scaled by the object size, boxed): optimum 0.
+            V = np.column_stack(
+                [N, [cross(pi - com, ni) / size for pi, ni in zip(P, N, strict=True)]]
+            )
+            res = linprog(
+                [0.0, W, 0.0],
+                A_ub=-V,
+                b_ub=np.zeros(len(V)),
+                bounds=[(-1, 1)] * 3,
+                options={
+                    "primal_feasibility_tolerance": 1e-10,
+                    "dual_feasibility_tolerance": 1e-10,
+                },
+            )
+            if res.status == 0:
+                out.descent = float(res.fun) / W
+                if out.descent < -EQ_RTOL:
+                    bad.append(f"equilibrium: admissible descent W v_y = {out.descent:.3e} W")
+        elif descent:
+            bad.append("equilibrium: no contacts (nothing holds the object)")
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# Random shapes
+# ---------------------------------------------------------------------------------------
+
+
+def rest_on_stable_edge(v: np.ndarray) -> np.ndarray:
+    """Turn a CCW polygon so that its most stable edge (the centroid projecting farthest from
+    both ends) lies on ``y = 0`` as edge 0, with the centroid at ``x = 0``."""
+    from grasp_env.geometry import polygon_centroid
+
+    c = polygon_centroid(v)
+    d = np.roll(v, -1, axis=0) - v
+    t = ((c - v) * d).sum(axis=1) / (d * d).sum(axis=1)
+    k = int(np.argmax(np.minimum(t, 1.0 - t) * np.linalg.norm(d, axis=1)))
+    phi = math.atan2(d[k, 1], d[k, 0])
+    v = np.roll(v @ rot(-phi).T, -k, axis=0)
+    v = v - np.array([polygon_centroid(v)[0], v[0, 1]])
+    v[:2, 1] = 0.0
+    return v
+
+
+def stress_polygon(
+    rng: np.random.Generator,
+    n: int,
+    size: float,
+    aspect: float,
+    kind: str = "plain",
+    eps: float = 1e-4,
+) -> np.ndarray:
+    """A random strictly convex CCW polygon resting on edge 0 on ``y = 0``, centroid at x = 0.
+
+    Args:
+        rng: the random generator.
+        n: vertex count of the base polygon (3..12; the kinds below may add one).
+        size: diameter, in palm widths.
+        aspect: aspect ratio of the ellipse the base vertices lie on (>= 1).
+        kind: ``"plain"``; ``"collinear"`` (a vertex added ``eps`` times an edge's length
+            outside its midpoint: two nearly collinear edges); ``"short_edge"`` (a corner cut
+            ``eps * size`` deep: a very short edge); ``"parallel"`` (a quadrilateral whose top
+            and sides are within ``eps`` rad of parallel to the base and to each other);
+            ``"sliver"`` (a rectangle of aspect ``aspect`` lying flat).
+        eps: the degeneracy's size (1e-6..1e-2).
+    """
+    from grasp_env.envs.shapes import random_convex_polygon
+
+    if kind == "parallel":
+        b, h = size / math.hypot(1.0, 1.0 / aspect), size / aspect / math.hypot(1.0, 1.0 / aspect)
+        e = eps * rng.choice([-1.0, 1.0], 3)
+        v = np.array(
+            [[-b / 2, 0.0], [b / 2, 0.0], [b / 2 + e[0] * h, h], [-b / 2 + e[1] * h, h + e[2] * b]]
+        )
+        return rest_on_stable_edge(v)
+    if kind == "sliver":
+        b = size / math.hypot(1.0, 1.0 / aspect)
+        h = b / aspect
+        return rest_on_stable_edge(np.array([[-b / 2, 0.0], [b / 2, 0.0], [b / 2, h], [-b / 2, h]]))
+    m = min(n, 11) if kind in ("collinear", "short_edge") else n
+    v = random_convex_polygon(rng, (m, m), (size, size), (aspect, aspect))
+    if kind == "collinear":
+        k = int(rng.integers(1, len(v)))  # not edge 0, the resting edge
+        a, b = v[k], v[(k + 1) % len(v)]
+        d = b - a
+        mid = 0.5 * (a + b) + eps * np.array([d[1], -d[0]])  # outward for a CCW polygon
+        v = np.insert(v, k + 1, mid, axis=0)
+    elif kind == "short_edge":
+        k = int(rng.integers(2, len(v))) if len(v) > 2 else 2
+        p, prv, nxt = v[k], v[k - 1], v[(k + 1) % len(v)]
+        cut = eps * size
+        a = p + cut * (prv - p) / np.linalg.norm(prv - p)
+        b = p + cut * (nxt - p) / np.linalg.norm(nxt - p)
+        v = np.concatenate([v[:k], [a, b], v[k + 1 :]])
+    return rest_on_stable_edge(v)
+
+
+def stress_scene(
+    polygon: np.ndarray, mass: float, base: str = "fig13", x0: float = 0.0
+) -> dict[str, Any]:
+    """A scene dict: ``polygon`` (resting on y = 0, centroid at x = 0) at ``x0`` with ``mass``,
+    in ``base``'s hand, palm centred over the polygon's extent just above the longer finger's
+    reach of the support (or of the object's top), fingers hanging straight down."""
+    import grasp_env
+    from grasp_env.envs.shapes import scene_to_dict
+
+    scene = grasp_env.load_scene(base)
+    d = scene_to_dict(scene)
+    v = np.asarray(polygon, float) + np.array([x0, 0.0])
+    w = scene.palm.width
+    y = max(max(f.length for f in scene.fingers), float(v[:, 1].max())) + CLEARANCE * w
+    d["palm"]["pose"] = [0.5 * float(v[:, 0].min() + v[:, 0].max()), y, 0.0]
+    for f in d["fingers"]:
+        f["angle"] = -0.5 * math.pi
+    d["name"] = "stress"
+    d["object"] = {"vertices": v.tolist(), "mass": float(mass)}
+    return d
+
+
+def random_stress_scene(rng: np.random.Generator) -> dict[str, Any]:
+    """A random :func:`stress_scene` over the full stress ranges (for the soak)."""
+    from grasp_env.errors import SceneError
+    from grasp_env.scene import load_scene
+
+    for _ in range(100):
+        kind = str(rng.choice(KINDS))
+        poly = stress_polygon(
+            rng,
+            n=int(rng.integers(3, 13)),
+            size=float(rng.uniform(0.05, 0.8)),
+            aspect=float(np.exp(rng.uniform(0.0, math.log(20.0)))),
+            kind=kind,
+            eps=float(10 ** rng.uniform(-6, -2)),
+        )
+        d = stress_scene(poly, mass=float(10 ** rng.uniform(-3, 1)))
+        try:
+            load_scene(d)
+        except SceneError:
+            continue  # e.g. too wide for the hanging fingers: draw another
+        d["description"] = kind
+        return d
+    raise RuntimeError("no valid stress scene in 100 draws")
+
+
+# ---------------------------------------------------------------------------------------
+# The soak
+# ---------------------------------------------------------------------------------------
+
+
+def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
+    """Run ``steps`` random-action env steps on shape ``index``; return its record."""
+    import gymnasium as gym
+
+    from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+
+    rng = np.random.default_rng([seed, index])
+    rec: dict[str, Any] = {
+        "index": index,
+        "steps": 0,
+        "episodes": 0,
+        "exceptions": 0,
+        "sim_errors": 0,
+        "violating_steps": 0,
+        "nan": 0,
+        "penetration": -math.inf,
+        "residual": 0.0,
+        "gap": 0.0,
+        "descent": 0.0,
+        "examples": [],
+        "time": 0.0,
+    }
+    t0 = time.perf_counter()
+    try:
+        d = random_stress_scene(rng)
+        rec["kind"] = d["description"]
+        start = str(rng.choice(["scene", "preliftoff", "random"]))
+        env = FrictionlessGraspEnv(scene=d, palm_control=True, start=start)
+    except Exception as exc:  # a valid random scene must always make an env
+        rec["exceptions"] += 1
+        rec["examples"].append(f"env construction: {exc!r}")
+        rec["time"] = time.perf_counter() - t0
+        return rec
+    tol = env.contact_tol * env.unwrapped.scenes[0].palm.width
+    space: gym.spaces.Box = env.observation_space
+    need_reset = True
+    # Biased to closing the fingers (a0, a1 > 0) so that grasps, lifts and jams happen.
+    while rec["steps"] < steps:
+        try:
+            if need_reset:
+                obs, info = env.reset(seed=int(rng.integers(2**31)))
+                rec["episodes"] += 1
+                need_reset, ep_steps = False, 0
+            else:
+                a = rng.uniform(-1.0, 1.0, 5)
+                a[:2] = rng.uniform(-0.4, 1.0, 2)
+                obs, _, term, trunc, info = env.step(a.astype(np.float32))
+                rec["steps"] += 1
+                ep_steps += 1
+                need_reset = term or trunc or ep_steps >= 200
+        except Exception as exc:
+            rec["exceptions"] += 1
+            if len(rec["examples"]) < 3:
+                rec["examples"].append(f"step {rec['steps']}: {exc!r}\n{traceback.format_exc()}")
+            need_reset = True
+            continue
+        if "sim_error" in info:
+            rec["sim_errors"] += 1
+            if len(rec["examples"]) < 3:
+                rec["examples"].append(f"step {rec['steps']}: sim_error {info['sim_error']}")
+        state = env._state
+        chk = check_state(
+            state.scene, info["object_pose"], np.r_[info["palm_pose"], info["finger_angles"]],
+            info["contacts"], tol,
+        )  # fmt: skip
+        if not np.all(np.isfinite(obs)) or not space.contains(obs):
+            chk.violations.append(f"nan: observation outside its space: {obs.tolist()}")
+        rec["penetration"] = max(rec["penetration"], chk.penetration)
+        rec["residual"] = max(rec["residual"], chk.residual)
+        rec["gap"] = max(rec["gap"], chk.gap)
+        rec["descent"] = min(rec["descent"], chk.descent)
+        if chk.violations:
+            rec["violating_steps"] += 1
+            rec["nan"] += any(v.startswith("nan") for v in chk.violations)
+            if len(rec["examples"]) < 3:
+                rec["examples"].append(f"step {rec['steps']}: {chk.violations[:3]}")
+    env.close()
+    rec["time"] = time.perf_counter() - t0
+    return rec
+
+
+def _work(job: tuple[int, int, int]) -> dict[str, Any]:
+    return soak_shape(*job)
+
+
+def checkpoint_path(seed: int, steps: int, shapes: int) -> Path:
+    return RESULTS / f"soak_{seed}_{steps}_{shapes}.jsonl"
+
+
+def run_soak(
+    steps: int, shapes: int, workers: int, seed: int, checkpoint: Path | None = None
+) -> tuple[list[dict], float]:
+    """Run (or resume) a soak; returns the per-shape records and this session's wall time."""
+    per_shape = [steps // shapes + (1 if i < steps % shapes else 0) for i in range(shapes)]
+    done: dict[int, dict] = {}
+    if checkpoint is not None and checkpoint.exists():
+        for line in checkpoint.read_text().splitlines():
+            if line.strip():
+                rec = json.loads(line)
+                done[rec["index"]] = rec
+    jobs = [(seed, i, per_shape[i]) for i in range(shapes) if i not in done]
+    t0 = time.perf_counter()
+    if jobs:
+        fh = checkpoint.open("a") if checkpoint is not None else None
+        ctx = mp.get_context("spawn" if os.name == "nt" else "fork")
+        with ctx.Pool(workers) if workers > 1 else _Serial() as pool:
+            for k, rec in enumerate(pool.imap_unordered(_work, jobs)):
+                done[rec["index"]] = rec
+                if fh is not None:
+                    fh.write(json.dumps(rec) + "\n")
+                    fh.flush()
+                if (k + 1) % max(1, len(jobs) // 20) == 0:
+                    print(f"  {k + 1}/{len(jobs)} shapes, {time.perf_counter() - t0:.0f} s")
+        if fh is not None:
+            fh.close()
+    return [done[i] for i in sorted(done)], time.perf_counter() - t0
+
+
+class _Serial:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def imap_unordered(self, fn, jobs):
+        return map(fn, jobs)
+
+
+def summarise(records: list[dict]) -> dict[str, Any]:
+    keys = ("steps", "episodes", "exceptions", "sim_errors", "violating_steps", "nan")
+    out: dict[str, Any] = {k: sum(r[k] for r in records) for k in keys}
+    out["shapes"] = len(records)
+    out["penetration"] = max(r["penetration"] for r in records)
+    out["residual"] = max(r["residual"] for r in records)
+    out["gap"] = max(r["gap"] for r in records)
+    out["descent"] = min(r["descent"] for r in records)
+    out["cpu_time"] = sum(r["time"] for r in records)
+    out["kinds"] = {k: sum(r.get("kind") == k for r in records) for k in KINDS}
+    out["bad_shapes"] = [
+        r["index"] for r in records if r["exceptions"] or r["sim_errors"] or r["violating_steps"]
+    ]
+    return out
+
+
+def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, records: list) -> None:
+    rate = s["steps"] / s["cpu_time"] if s["cpu_time"] else math.nan
+    kinds = ", ".join(f"{k} {v}" for k, v in s["kinds"].items())
+    lines = [
+        "# Soak test of FrictionlessGrasp-v0",
+        "",
+        f"Command: `python benchmarks/soak.py --steps {args.steps} --shapes {args.shapes} "
+        f"--workers {args.workers} --seed {args.seed}`  ",
+        f"Machine: {platform.machine()}, Python {platform.python_version()}, "
+        f"{os.cpu_count()} CPUs; date {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}",
+        "",
+        "| figure | value |",
+        "| --- | --- |",
+        f"| env steps | {s['steps']} |",
+        f"| random shapes | {s['shapes']} ({kinds}) |",
+        f"| episodes | {s['episodes']} |",
+        f"| exceptions raised | {s['exceptions']} |",
+        f"| `info['sim_error']` terminations | {s['sim_errors']} |",
+        f"| steps violating an invariant | {s['violating_steps']} |",
+        f"| steps with NaN/inf | {s['nan']} |",
+        f"| worst penetration (x palm width; tol 1e-9) | {s['penetration']:.2e} |",
+        f"| worst listed-contact abs(gap) (x palm width) | {s['gap']:.2e} |",
+        f"| worst equilibrium residual (x weight; limit {EQ_RTOL:g}) | {s['residual']:.2e} |",
+        f"| most negative descent-LP optimum (x weight) | {s['descent']:.2e} |",
+        f"| env steps/s per process | {rate:.1f} |",
+        f"| env steps/s, all workers (this session's wall time {wall:.0f} s) | "
+        f"{s['steps'] / wall if wall > 1 else math.nan:.1f} |",
+        "",
+    ]
+    if s["bad_shapes"]:
+        lines += [
+            f"Shapes with failures ({len(s['bad_shapes'])}); reproduce one with "
+            f"`python benchmarks/soak.py --seed {args.seed} --only INDEX --steps N` "
+            "where N is the shape's steps:",
+            "",
+        ]
+        by_index = {r["index"]: r for r in records}
+        for i in s["bad_shapes"][:20]:
+            r = by_index[i]
+            lines.append(
+                f"- shape {i} ({r.get('kind')}, {r['steps']} steps): exceptions "
+                f"{r['exceptions']}, sim_errors {r['sim_errors']}, violating steps "
+                f"{r['violating_steps']}"
+            )
+            for ex in r["examples"][:2]:
+                lines.append(f"  - `{ex.splitlines()[0][:300]}`")
+        lines.append("")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=1_000_000, help="total env steps")
+    ap.add_argument("--shapes", type=int, default=1000, help="random shapes")
+    ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 2)))
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--quick", action="store_true", help="2,000 steps on 20 shapes")
+    ap.add_argument("--only", type=int, default=None, help="run one shape index (serial)")
+    ap.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    ap.add_argument("--out", type=Path, default=RESULTS / "soak.md")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.steps, args.shapes = 2000, 20
+    if args.only is not None:
+        rec = soak_shape(args.seed, args.only, args.steps)
+        print(json.dumps({k: v for k, v in rec.items() if k != "examples"}, indent=1))
+        for ex in rec["examples"]:
+            print(ex)
+        return 0 if not (rec["exceptions"] or rec["sim_errors"] or rec["violating_steps"]) else 1
+    if args.steps < args.shapes or args.shapes < 1:
+        ap.error("--steps must be >= --shapes >= 1")
+    ckpt = checkpoint_path(args.seed, args.steps, args.shapes)
+    if args.fresh and ckpt.exists():
+        ckpt.unlink()
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    print(f"soak: {args.steps} steps on {args.shapes} shapes, {args.workers} workers -> {ckpt}")
+    records, wall = run_soak(args.steps, args.shapes, args.workers, args.seed, ckpt)
+    s = summarise(records)
+    write_report(args.out, args, s, wall, records)
+    print(args.out.read_text())
+    failed = s["exceptions"] or s["sim_errors"] or s["violating_steps"]
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

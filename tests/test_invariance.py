@@ -1,0 +1,295 @@
+"""Scale, mirror and shift invariance of the simulator (metamorphic tests).
+
+A scene is transformed (scaled by k, mirrored left-right, shifted along x), the same hand
+path transformed the same way is run on both, and the two results must be related by the
+transformation, to within the contact tolerance:
+
+* **scale by k** (every length, the palm pose's x and y; densities kept, so masses scale by
+  k^2; or masses given and multiplied by m): object poses ``(k x, k y, theta)``, finger angles
+  unchanged, contact points scaled by k, forces scaled by the mass factor (k^2 or m);
+* **mirror** ``x -> -x``: finger 1 and finger 2 swap (lengths, thicknesses, limits), a finger
+  angle ``q`` becomes ``-pi - q`` on the other side (axis ``(cos q, sin q)`` mirrored is
+  ``(cos(-pi - q), sin(-pi - q))``), palm and object angles are negated, object vertices are
+  mirrored and reversed (to stay counter-clockwise), contact normals mirrored;
+* **shift** by dx: every x plus dx, nothing else changes.
+
+Each run's states are also checked by :func:`soak.check_state`.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import grasp_env
+from grasp_env import Simulator
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import soak
+
+SCENES_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenes"
+#: Pose agreement, as a fraction of the palm width (events are located to 1e-9 of it).
+POSE_RTOL = 1e-7
+FORCE_RTOL = 1e-6
+
+
+def raw(name: str) -> dict:
+    d = yaml.safe_load((SCENES_DIR / f"{name}.yaml").read_text())
+    d.pop("description", None)
+    return d
+
+
+# ---------------------------------------------------------------------------------------
+# Transformations of a scene dict and of a hand configuration
+# ---------------------------------------------------------------------------------------
+
+
+def scale_scene(d: dict, k: float, mass: float | None = None) -> dict:
+    d = copy.deepcopy(d)
+    p = d["palm"]
+    p["width"] *= k
+    p["thickness"] = p.get("thickness", 0.15) * k
+    p["pose"] = [p["pose"][0] * k, p["pose"][1] * k, p["pose"][2]]
+    for f in d["fingers"]:
+        f["length"] *= k
+        f["thickness"] = f.get("thickness", 0.05) * k
+        f.pop("torque_limits", None)  # torques scale by k^3: drop the (inactive) limits
+    o = d["object"]
+    o["vertices"] = [[x * k, y * k] for x, y in o["vertices"]]
+    if mass is not None:
+        o.pop("density", None)
+        o["mass"] = mass
+    return d
+
+
+def mirror_scene(d: dict) -> dict:
+    d = copy.deepcopy(d)
+    p = d["palm"]
+    p["pose"] = [-p["pose"][0], p["pose"][1], -p["pose"][2]]
+    f1, f2 = d["fingers"]
+    new = []
+    for f in (f2, f1):
+        g = dict(f)
+        g["angle"] = -math.pi - f["angle"]
+        lo, hi = f.get("limits", [-math.pi, 0.0])
+        g["limits"] = [-math.pi - hi, -math.pi - lo]
+        if "torque_limits" in f:
+            a, b = f["torque_limits"]
+            g["torque_limits"] = [-b, -a]
+        new.append(g)
+    d["fingers"] = new
+    d["object"]["vertices"] = [[-x, y] for x, y in reversed(d["object"]["vertices"])]
+    return d
+
+
+def shift_scene(d: dict, dx: float) -> dict:
+    d = copy.deepcopy(d)
+    d["palm"]["pose"][0] += dx
+    d["object"]["vertices"] = [[x + dx, y] for x, y in d["object"]["vertices"]]
+    return d
+
+
+def scale_hand(h: np.ndarray, k: float) -> np.ndarray:
+    return np.array([h[0] * k, h[1] * k, h[2], h[3], h[4]])
+
+
+def mirror_hand(h: np.ndarray) -> np.ndarray:
+    return np.array([-h[0], h[1], -h[2], -math.pi - h[4], -math.pi - h[3]])
+
+
+def shift_hand(h: np.ndarray, dx: float) -> np.ndarray:
+    return np.array([h[0] + dx, h[1], h[2], h[3], h[4]])
+
+
+# ---------------------------------------------------------------------------------------
+# Runs
+# ---------------------------------------------------------------------------------------
+
+
+def hand_path(d: dict, kind: str) -> list[np.ndarray]:
+    """Hand targets in the original scene: ``"close"`` closes both fingers at equal rates
+    (0.06 rad per move, 8 moves: the paper's section 4); ``"palm"`` also moves and tilts
+    the palm."""
+    sc = grasp_env.load_scene(d)
+    h = sc.initial_hand.copy()
+    out = []
+    rng = np.random.default_rng(7)
+    for m in range(8):
+        h = h.copy()
+        h[3] += 0.06
+        h[4] -= 0.05 if kind == "palm" else 0.06
+        if kind == "palm" and m % 2:
+            h[:3] += rng.uniform([-0.02, -0.02, -0.05], [0.02, 0.01, 0.05])
+        out.append(h)
+    return out
+
+
+def run(d: dict, path: list[np.ndarray]) -> list[grasp_env.State]:
+    sim = Simulator(d, max_iterations=400)
+    tol = 1e-9 * sim.scene.palm.width
+    states = [sim.reset()]
+    for h in path:
+        states.append(sim.move_hand(states[-1], palm=h[:3], fingers=h[3:]))
+    for i, st in enumerate(states):
+        chk = soak.check_state(st.scene, st.object_pose, st.hand, st.contacts, tol)
+        assert not chk.violations, f"state {i}: {chk.violations}"
+    return states
+
+
+def contact_table(st: grasp_env.State, point_map, body_map) -> list[tuple]:
+    rows = []
+    for c in st.contacts:
+        p = point_map(np.asarray(c.point))
+        rows.append((body_map(c.body), c.kind, p, c.force))
+    return sorted(rows, key=lambda r: (r[0], round(float(r[2][0]), 6), round(float(r[2][1]), 6)))
+
+
+def compare(
+    a: list[grasp_env.State],
+    b: list[grasp_env.State],
+    pose_map,
+    hand_map,
+    point_map,
+    body_map,
+    force_factor: float,
+    length: float,
+) -> None:
+    """``b`` must be ``a`` transformed: poses, hands, contacts (point, body, kind), forces."""
+    for i, (sa, sb) in enumerate(zip(a, b, strict=True)):
+        where = f"state {i}"
+        np.testing.assert_allclose(
+            sb.object_pose, pose_map(sa.object_pose), atol=POSE_RTOL * length, err_msg=where
+        )
+        np.testing.assert_allclose(
+            sb.hand, hand_map(sa.hand), atol=POSE_RTOL * length, err_msg=where
+        )
+        assert sb.jammed == sa.jammed and sb.hand_blocked == sa.hand_blocked, where
+        ta = contact_table(sa, point_map, body_map)
+        tb = contact_table(sb, lambda p: p, lambda s: s)
+        assert [(r[0], r[1]) for r in ta] == [(r[0], r[1]) for r in tb], where
+        for ra, rb in zip(ta, tb, strict=True):
+            np.testing.assert_allclose(rb[2], ra[2], atol=POSE_RTOL * length, err_msg=where)
+        W = sb.scene.object_weight
+        # The least total force is unique; the forces themselves are when <= 3 contacts.
+        total_a, total_b = sum(r[3] for r in ta), sum(r[3] for r in tb)
+        assert total_b == pytest.approx(total_a * force_factor, rel=FORCE_RTOL, abs=1e-9 * W)
+        if len(ta) <= 3:
+            np.testing.assert_allclose(
+                [r[3] * force_factor for r in ta], [r[3] for r in tb],
+                rtol=FORCE_RTOL, atol=1e-9 * W, err_msg=where,
+            )  # fmt: skip
+
+
+CASES = [
+    pytest.param("fig13", "close", id="fig13-close"),
+    pytest.param("fig13", "palm", id="fig13-palm"),
+    pytest.param("triangle", "close", id="triangle-close"),
+    pytest.param("offset_pentagon", "palm", id="offset_pentagon-palm"),
+]
+
+
+@pytest.mark.parametrize(
+    "k",
+    [0.01, pytest.param(3.0, marks=pytest.mark.slow), 250.0],
+    ids=["k0.01", "k3", "k250"],
+)
+@pytest.mark.parametrize(("name", "kind"), CASES)
+def test_scale_invariance(name: str, kind: str, k: float) -> None:
+    """Densities kept: masses, weights and forces scale by k^2; lengths by k."""
+    d = raw(name)
+    path = hand_path(d, kind)
+    a = run(d, path)
+    b = run(scale_scene(d, k), [scale_hand(h, k) for h in path])
+    compare(
+        a, b,
+        pose_map=lambda q: np.array([q[0] * k, q[1] * k, q[2]]),
+        hand_map=lambda h: scale_hand(h, k),
+        point_map=lambda p: p * k,
+        body_map=lambda s: s,
+        force_factor=k**2,
+        length=k,
+    )  # fmt: skip
+    assert b[0].scene.object.mass == pytest.approx(a[0].scene.object.mass * k**2, rel=1e-12)
+
+
+@pytest.mark.parametrize("mass", [1e-3, 10.0], ids=["light", "heavy"])
+def test_mass_scaling_scales_forces_only(mass: float) -> None:
+    """The same geometry with the object's mass given: poses unchanged, forces scale with the
+    mass (quasi-static motion does not depend on the mass, eqs. 19-21)."""
+    d = raw("fig13")
+    path = hand_path(d, "palm")
+    a = run(d, path)
+    b = run(scale_scene(d, 1.0, mass=mass), path)
+    compare(
+        a, b, pose_map=lambda q: q, hand_map=lambda h: h, point_map=lambda p: p,
+        body_map=lambda s: s, force_factor=mass / a[0].scene.object.mass, length=1.0,
+    )  # fmt: skip
+
+
+SWAP = {"finger1": "finger2", "finger2": "finger1"}
+
+
+@pytest.mark.parametrize(("name", "kind"), CASES)
+def test_mirror_invariance(name: str, kind: str) -> None:
+    d = raw(name)
+    path = hand_path(d, kind)
+    a = run(d, path)
+    b = run(mirror_scene(d), [mirror_hand(h) for h in path])
+    compare(
+        a, b,
+        pose_map=lambda q: np.array([-q[0], q[1], -q[2]]),
+        hand_map=mirror_hand,
+        point_map=lambda p: np.array([-p[0], p[1]]),
+        body_map=lambda s: SWAP.get(s, s),
+        force_factor=1.0,
+        length=1.0,
+    )  # fmt: skip
+    for sa, sb in zip(a, b, strict=True):  # normals mirror too
+        na = sorted((SWAP.get(c.body, c.body), -c.normal[0], c.normal[1]) for c in sa.contacts)
+        nb = sorted((c.body, c.normal[0], c.normal[1]) for c in sb.contacts)
+        for ra, rb in zip(na, nb, strict=True):
+            assert ra[0] == rb[0]
+            np.testing.assert_allclose(ra[1:], rb[1:], atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "dx", [pytest.param(-0.37, marks=pytest.mark.slow), 10.0], ids=["dx-0.37", "dx10"]
+)
+@pytest.mark.parametrize(("name", "kind"), CASES)
+def test_shift_invariance(name: str, kind: str, dx: float) -> None:
+    d = raw(name)
+    path = hand_path(d, kind)
+    a = run(d, path)
+    b = run(shift_scene(d, dx), [shift_hand(h, dx) for h in path])
+    compare(
+        a, b,
+        pose_map=lambda q: q + np.array([dx, 0.0, 0.0]),
+        hand_map=lambda h: shift_hand(h, dx),
+        point_map=lambda p: p + np.array([dx, 0.0]),
+        body_map=lambda s: s,
+        force_factor=1.0,
+        length=1.0,
+    )  # fmt: skip
+
+
+def test_transformations_are_involutions() -> None:
+    """Sanity of the helpers: mirroring twice and scaling by k then 1/k give the scene back."""
+    d = raw("fig13")
+    twice = mirror_scene(mirror_scene(d))
+    assert twice["fingers"][0]["angle"] == pytest.approx(d["fingers"][0]["angle"])
+    np.testing.assert_allclose(twice["object"]["vertices"], d["object"]["vertices"])
+    np.testing.assert_allclose(mirror_hand(mirror_hand(np.arange(5.0))), np.arange(5.0))
+    back = scale_scene(scale_scene(d, 4.0), 0.25)
+    assert back["palm"]["width"] == pytest.approx(d["palm"]["width"])
+    # The mirrored scene's fingers are the mirror images: tip of new finger 1 = mirrored tip
+    # of old finger 2.
+    s0, s1 = grasp_env.load_scene(d), grasp_env.load_scene(mirror_scene(d))
+    t0 = soak.hand_polygons_W(s0, s0.initial_hand)["finger2"]
+    t1 = soak.hand_polygons_W(s1, s1.initial_hand)["finger1"]
+    assert {tuple(p) for p in np.round(t0 * [-1, 1], 12)} == {tuple(p) for p in np.round(t1, 12)}
