@@ -68,10 +68,10 @@ ALTERNATIVES = (
     (0.0, 0.5),
 )
 #: Squeezes in a row allowed without bringing the object closer to the palm than before.
-PATIENCE = 10
+PATIENCE = 5
 #: Least decrease of the object's distance to the palm that counts as lifting progress,
 #: relative to the object's size.
-PROGRESS_TOL = 1e-6
+PROGRESS_TOL = 5e-3
 
 
 @dataclass(frozen=True)
@@ -381,12 +381,12 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
     It is taken unless it jams the hand or has not brought the object closer to the palm than
     ever before (:func:`palm_distance`) for ``PATIENCE`` steps. Then the alternatives are
     simulated: one finger leading or alone, both fingers turning the same way (rolling the
-    object past a fold where the squeeze wedges it), half-size increments, each also followed
-    by a squeeze (letting go a little to get out of a wedge); the best that sets a new record
-    is taken, so the phase cannot cycle. An increment is refused if it drops the object
-    (back onto the support after it left) or, with the object off the support, opens the
-    fingertips from closer than the object's width to wider (Toussaint's no-drop condition,
-    section 3.2: while ``d < w`` the object cannot drop).
+    object past a fold where the squeeze wedges it), half-size increments, and a finger
+    letting go a little followed by a squeeze (out of a wedge); the best is taken; after
+    ``PATIENCE`` steps without a new record only a record is, so the phase cannot cycle. An
+    increment is refused if it drops the object (back onto the support after it left) or,
+    with the object off the support, opens the fingertips from closer than the object's width
+    to wider (Toussaint's no-drop condition, section 3.2: while ``d < w`` it cannot drop).
     """
     width = object_width(sim.scene)
     squeeze = np.array([dq, -dq])
@@ -412,16 +412,19 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
                 if not _admissible(a, state, lifted, width):
                     continue
                 seq = [a]
-                if not _grasped(a):
+                if min(m[0], -m[1]) < 0 and not _grasped(a):  # a release: squeeze after
                     b = sim.move_hand(a, fingers=a.finger_angles + squeeze)
                     if _admissible(b, a, lifted, width) and _score(b) < _score(a):
                         seq.append(b)
                 s = _score(seq[-1])
-                if s < record - PROGRESS_TOL * sim.size and (best is None or s < best[0]):
+                if best is None or s < best[0]:
                     best = (s, seq)
                     if s == -math.inf:
                         break
-            chosen = None if best is None else best[1]
+            if best is not None and (
+                best[0] < record - PROGRESS_TOL * sim.size or since_record < PATIENCE
+            ):
+                chosen = best[1]
         if chosen is None:
             plan.status = "stuck"
             plan.message = "no lifting increment brings the object closer to the palm"
