@@ -62,32 +62,46 @@ class Runner:
     name: str
     env: gym.Env
     policy: Any
+    time_policy: bool = False
     rates: list[float] = field(default_factory=list)
     steps: int = 0
     episodes: int = 0
+    seconds: float = 0.0
+    policy_seconds: float = 0.0
 
     def __post_init__(self) -> None:
         self.obs, info = self.env.reset(seed=0)
         self.policy.reset(self.obs, info)
 
     def run(self, budget: float) -> float:
-        """Step for ``budget`` seconds; return and record steps/s."""
-        env, policy, obs = self.env, self.policy, self.obs
-        n, t0 = 0, time.perf_counter()
+        """Step for ``budget`` seconds; return and record steps/s. With ``time_policy`` the
+        policy's own time (``act`` and ``reset``) is summed too."""
+        env, policy, obs, clock = self.env, self.policy, self.obs, time.perf_counter
+        n, t0, in_policy = 0, clock(), 0.0
         end = t0 + budget
         while True:
-            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            if self.time_policy:
+                t = clock()
+                action = policy.act(obs)
+                in_policy += clock() - t
+            else:
+                action = policy.act(obs)
+            obs, _, terminated, truncated, info = env.step(action)
             n += 1
             if terminated or truncated:
                 obs, info = env.reset()
+                t = clock()
                 policy.reset(obs, info)
+                in_policy += clock() - t
                 self.episodes += 1
-            if n % 8 == 0 and time.perf_counter() >= end:
+            if n % 8 == 0 and clock() >= end:
                 break
-        rate = n / (time.perf_counter() - t0)
+        elapsed = clock() - t0
         self.obs, self.steps = obs, self.steps + n
-        self.rates.append(rate)
-        return rate
+        self.seconds += elapsed
+        self.policy_seconds += in_policy
+        self.rates.append(n / elapsed)
+        return n / elapsed
 
 
 def scripted_runner() -> tuple[Runner | None, str]:
@@ -101,7 +115,8 @@ def scripted_runner() -> tuple[Runner | None, str]:
         env = gym.make("FrictionlessGrasp-v0", **kwargs)
         try:
             args = ", ".join(f"{k}={v!r}" for k, v in kwargs.items())
-            return Runner(f"FrictionlessGrasp-v0 scripted ({args})", env, ScriptedPolicy(env)), ""
+            name = f"FrictionlessGrasp-v0 scripted ({args})"
+            return Runner(name, env, ScriptedPolicy(env), time_policy=True), ""
         except Exception as exc:  # a policy under construction: report, do not fail the suite
             errors.append(f"{kwargs}: {type(exc).__name__}: {exc}")
             env.close()
@@ -152,12 +167,14 @@ def run(
             rate = runner.run(budget)
             print(f"round {r}: {runner.name}: {rate:,.0f} steps/s")
     base = {b.name: b for b in runners if b.name in BASELINES}
-    header = ["env / policy", "steps/s (median)", "us/step", "steps", "episodes"]
+    header = ["env / policy", "steps/s (median)", "us/step", "steps", "episodes", "policy share"]
     header += [f"ratio to {name}" for name in base]
     rows = []
     for runner in runners:
         rate = statistics.median(runner.rates)
+        share = f"{runner.policy_seconds / runner.seconds:.0%}" if runner.time_policy else "-"
         row = [runner.name, f"{rate:,.0f}", f"{1e6 / rate:,.1f}", runner.steps, runner.episodes]
+        row.append(share)
         for b in base.values():
             ratios = [x / y for x, y in zip(runner.rates, b.rates, strict=True)]
             row.append(f"{statistics.median(ratios):.4f}")
@@ -174,7 +191,8 @@ def run(
     body = [
         f"{rounds} rounds x {budget:g} s per env, rotated order; random actions from a "
         "seeded Generator in blocks; `render_mode=None`; resets inside the timing; ratios "
-        "are medians of per-round ratios.",
+        "are medians of per-round ratios. Policy share: the scripted policy's own time "
+        "(planning at reset, re-planning, `act`) as a fraction of the wall time.",
         "",
         *table(header, rows),
         "",
