@@ -124,8 +124,17 @@ def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(p - a - t * d))
 
 
+def boundary_distances(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Distance of each point (m, 2) to the boundary of a polygon (its closed edge chain)."""
+    a = poly
+    d = np.roll(poly, -1, axis=0) - poly
+    rel = points[:, None, :] - a[None, :, :]  # (m, k, 2)
+    t = np.clip((rel * d[None]).sum(-1) / (d * d).sum(-1)[None], 0.0, 1.0)
+    return np.linalg.norm(rel - t[..., None] * d[None], axis=-1).min(axis=1)
+
+
 def boundary_distance(p: np.ndarray, poly: np.ndarray) -> float:
-    return min(segment_distance(p, a, b) for a, b, _ in edges(poly))
+    return float(boundary_distances(np.asarray(p, float)[None], poly)[0])
 
 
 # ---------------------------------------------------------------------------------------
@@ -188,8 +197,9 @@ def check_state(
     out.penetration = depth / w
     if depth > limit:
         bad.append(f"penetration: object {depth:.3e} below the support")
+    depths = {}
     for name, poly in bodies.items():
-        d = sat_depth(obj, poly)
+        d = depths[name] = sat_depth(obj, poly)
         out.penetration = max(out.penetration, d / w)
         if d > limit:
             bad.append(f"penetration: object and {name} overlap by {d:.3e}")
@@ -260,11 +270,13 @@ def check_state(
         if p[1] <= limit and not listed("support", p):
             bad.append(f"unlisted: object vertex {p.tolist()} touches the support")
     for name, poly in bodies.items():
-        for p in obj:
-            if boundary_distance(p, poly) <= limit and not listed(name, p):
+        if depths[name] < -2 * limit:
+            continue  # apart: nothing touches
+        for p, dist in zip(obj, boundary_distances(obj, poly), strict=True):
+            if dist <= limit and not listed(name, p):
                 bad.append(f"unlisted: object vertex {p.tolist()} touches the {name}")
-        for p in poly:
-            if boundary_distance(p, obj) <= limit and not listed(name, p):
+        for p, dist in zip(poly, boundary_distances(poly, obj), strict=True):
+            if dist <= limit and not listed(name, p):
                 bad.append(f"unlisted: {name} vertex {p.tolist()} touches the object")
 
     # Equilibrium: sum c_i n_i + m g = 0 and the moment about the centre of mass.
