@@ -47,9 +47,6 @@ PHASES = ("pre-liftoff", "lifting", "grip adjustment")
 #: pre-liftoff placement, in palm widths (the paper's "just high enough so that the longer
 #: finger could not touch the support").
 PALM_CLEARANCE = 0.01
-#: How far the centred placement lowers the palm, in palm widths, when a finger cannot reach
-#: the object from above.
-PALM_LOWERING = 0.05
 #: Finger step of the pre-liftoff closing motion (rad); the first touch is then located
 #: exactly from the simulator's events, so the step only changes the cost.
 PRELIFTOFF_STEP = 0.1
@@ -242,65 +239,31 @@ def _side_direction(scene, p_C: np.ndarray, hold: int) -> np.ndarray:
     return d / np.linalg.norm(d)
 
 
-def centred_hand(
-    scene, palm_y: float | None = None, object_vertices_W: np.ndarray | None = None
-) -> np.ndarray:
+def centred_hand(scene, object_vertices_W: np.ndarray | None = None) -> np.ndarray:
     """The paper's centred pre-liftoff hand: palm over the object's centroid, parallel to the
-    support, fingers hanging straight down.
+    support, ``PALM_CLEARANCE`` palm widths above the longer finger's reach of the support
+    (higher if the object is taller), fingers hanging straight down.
 
     Args:
         scene: the scene (its hand and, unless given, its object).
-        palm_y: palm height; None: the paper's, ``PALM_CLEARANCE`` palm widths above the
-            longer finger's reach of the support (higher if the object is taller).
         object_vertices_W: the object's vertices ``(n, 2)`` in the world; default the scene's.
 
     Returns:
-        Hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,). A finger that would
-        reach into the support hanging is opened (turned outwards) until its body clears the
-        support by ``PALM_CLEARANCE``.
+        Hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,).
     """
     v = scene.object.vertices_W0 if object_vertices_W is None else object_vertices_W
-    w = scene.palm.width
-    clearance = PALM_CLEARANCE * w
-    if palm_y is None:
-        palm_y = max(max(f.length for f in scene.fingers), float(v[:, 1].max())) + clearance
-    lim = scene.joint_limits
-    h = np.array([float(geo.polygon_centroid(v)[0]), palm_y, 0.0, -math.pi / 2, -math.pi / 2])
-    h[3:] = np.clip(h[3:], lim[:, 0], lim[:, 1])
-    for i, opening in ((0, -1.0), (1, 1.0)):  # finger 1 opens as q1 falls, finger 2 as q2 grows
-        reach = scene.fingers[i].length + scene.fingers[i].thickness
-        if palm_y - reach < clearance:
-            # lowest point of the hanging-ish finger ~ palm_y + reach sin(q): open until clear
-            s = min(1.0, (palm_y - clearance) / reach)
-            q = -math.pi / 2 + opening * (math.pi / 2 - math.asin(max(-1.0, s)))
-            h[3 + i] = float(np.clip(q, lim[i, 0], lim[i, 1]))
-    return h
+    reach = max(max(f.length for f in scene.fingers), float(v[:, 1].max()))
+    q = np.clip(np.full(2, -0.5 * math.pi), scene.joint_limits[:, 0], scene.joint_limits[:, 1])
+    x = float(geo.polygon_centroid(v)[0])
+    return np.array([x, reach + PALM_CLEARANCE * scene.palm.width, 0.0, q[0], q[1]])
 
 
 def centred_placement(sim: Simulator, step: float = PRELIFTOFF_STEP) -> State:
-    """The paper's fallback pre-liftoff placement, returned after the fingers touch.
-
-    The palm is centred over the object, parallel to the support, just high enough that the
-    longer finger cannot touch the support (:func:`centred_hand`); the fingers close at equal
-    rates until each touches the object (:func:`close_until_touch`). If a finger closes to its
-    limit without touching (a short finger over a low object), the palm is lowered by
-    ``PALM_LOWERING`` palm widths (fingers opened to clear the support) and the fingers close
-    again, while the palm stays clear of the object.
-    """
+    """The paper's fallback pre-liftoff placement: the palm at :func:`centred_hand`, the
+    fingers closed at equal rates until each touches the object (:func:`close_until_touch`)."""
     scene = sim.scene
-    q_obj = scene.object.start_pose.copy()
-    top = float(scene.object.vertices_W0[:, 1].max())
-    h = centred_hand(scene)
-    state = close_until_touch(sim, sim.settle(q_obj, h), step)
-    while not _both_touch(state) and not state.jammed:
-        y = h[1] - PALM_LOWERING * scene.palm.width
-        if y < top + PALM_CLEARANCE * scene.palm.width:
-            break
-        h = centred_hand(scene, y)
-        if not _hand_clear(scene, h, q_obj, sim.tol):
-            break
-        state = close_until_touch(sim, sim.settle(q_obj, h), step)
-    return state
+    state = sim.settle(scene.object.start_pose.copy(), centred_hand(scene))
+    return close_until_touch(sim, state, step)
 
 
 def _both_touch(state: State) -> bool:
@@ -575,40 +538,42 @@ def adjust_grip(
     state: State,
     plan: Plan,
     eps: float = 1e-4,
-    alpha: float = 0.02,
+    alpha: float = 1.0,
     max_dq: float = 0.02,
     max_steps: int = 200,
 ) -> State:
     """Grip-adjustment phase: descend ``y*`` along the four-contact branches (eq. 37).
 
-    Each step takes ``q1 <- q1 - alpha dy*/dq1`` (forward difference with ``eps``), clipped to
-    ``max_dq`` and halved until ``y*`` decreases. At a five-contact configuration the branches
-    that keep form closure are evaluated in both directions and the best one continues. Stops
-    when no branch and direction lowers ``y*``.
+    Each step takes ``q1 <- q1 - alpha (dy*/dq1) / W`` (``W`` the object's weight; a
+    difference over ``eps`` in each direction), its size clipped to ``[eps, max_dq]`` and
+    halved until ``y*`` falls below its value at the ``eps`` step (which is taken otherwise).
+    At a five-contact configuration every four-contact branch that keeps form closure is
+    evaluated in both directions and the best one continues. Stops when no branch lowers
+    ``y*`` at a step of ``eps`` either way.
     """
     y = mech.grip_objective(state)
     z = np.array([*state.object_pose, state.hand[4]])
     q1 = float(state.hand[3])
+    weight = sim.scene.object_weight
     for _ in range(max_steps):
         best = None
         for br in _branches(sim, state):
-            y_eps, _ = br.grip(q1 + eps, z)
-            y_meps, _ = br.grip(q1 - eps, z)
-            # the branch is usable only in directions where it stays valid
-            for sign, y_nb in ((1.0, y_eps), (-1.0, y_meps)):
-                if not math.isfinite(y_nb) or y_nb >= y:
+            # the branch is usable only in directions where it stays valid and y* falls
+            for sign in (1.0, -1.0):
+                y_nb, z_nb = br.grip(q1 + sign * eps, z)
+                if z_nb is None or y_nb >= y:
                     continue
-                grad = (y_nb - y) / eps * sign
-                step = float(np.clip(-alpha * grad, -max_dq, max_dq))
-                if step * sign <= 0:
-                    step = sign * eps
-                while abs(step) >= eps:
+                grad = (y_nb - y) / (sign * eps)
+                step = sign * float(np.clip(alpha * abs(grad) / weight, eps, max_dq))
+                found = (y_nb, q1 + sign * eps, z_nb)  # the eps step is known to descend
+                while abs(step) > eps:
                     y_new, z_new = br.grip(q1 + step, z)
-                    if z_new is not None and y_new < y:
-                        if best is None or y_new < best[0]:
-                            best = (y_new, q1 + step, z_new, br)
+                    if z_new is not None and y_new < y_nb:
+                        found = (y_new, q1 + step, z_new)
                         break
                     step *= 0.5
+                if best is None or found[0] < best[0]:
+                    best = (*found, br)
         if best is None:
             plan.message = "form closure reached; y* at a local minimum"
             return state

@@ -140,9 +140,7 @@ class FrictionlessGraspEnv(gym.Env):
       (:func:`grasp_env.planner.centred_placement`): palm centred over the object, parallel
       to the support, just high enough that the longer finger cannot touch it, fingers
       closed at equal rates (by the simulator, in steps of 0.1 rad, the first touch located
-      exactly) until each finger touches the object or the fingers jam; if a finger cannot
-      reach the object from there, the palm is lowered in steps of 0.05 w (fingers opened to
-      clear the support) until both can;
+      exactly) until each finger touches the object or the fingers jam;
     * ``"random"``: the ``"preliftoff"`` configuration perturbed uniformly by up to
       ``0.02 w`` in palm x and y, 0.05 rad in palm angle and 0.1 rad in each finger angle,
       redrawn until the hand is clear of the object and the support.
