@@ -28,6 +28,20 @@ SCENES_DIR = Path(
 #: palm width (the simulator's default ``contact_tol``).
 DEFAULT_CONTACT_TOL = 1e-9
 
+#: Largest magnitude of any number in a scene, and smallest of a positive one (lengths,
+#: densities, masses, gravity): products such as ``mass * length**2`` must stay finite and
+#: normal floats, so that forces, inertias and tolerances derived from them do too.
+MAX_MAGNITUDE = 1e100
+MIN_POSITIVE = 1e-100
+
+#: Largest magnitude of an angle (rad). Beyond one turn an angle is almost surely given in
+#: degrees (e.g. limits ``[-180, 0]``).
+MAX_ANGLE = 2 * math.pi
+
+#: Shortest object edge, in contact tolerances (``DEFAULT_CONTACT_TOL`` x palm width): an
+#: edge shorter than a few tolerances cannot be told apart from a vertex.
+MIN_EDGE_TOLS = 10.0
+
 
 @dataclass(frozen=True)
 class PalmSpec:
@@ -110,7 +124,9 @@ _FINGER_KEYS = {"length", "thickness", "angle", "limits", "torque_limits", "dens
 _OBJECT_KEYS = {"vertices", "density", "mass"}
 
 
-def _number(value: Any, name: str, *, positive: bool = False, allow_inf: bool = False) -> float:
+def _number(
+    value: Any, name: str, *, positive: bool = False, allow_inf: bool = False, angle: bool = False
+) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
         raise SceneError(f"{name} must be a number, got {value!r}")
     try:
@@ -121,13 +137,30 @@ def _number(value: Any, name: str, *, positive: bool = False, allow_inf: bool = 
         raise SceneError(f"{name} must be finite, got {value!r}")
     if positive and not x > 0:
         raise SceneError(f"{name} must be positive, got {value!r}")
+    if math.isfinite(x) and abs(x) > MAX_MAGNITUDE:
+        raise SceneError(f"{name} must be at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}")
+    if positive and x < MIN_POSITIVE:
+        raise SceneError(f"{name} must be at least {MIN_POSITIVE:g}, got {value!r}")
+    if angle and abs(x) > MAX_ANGLE:
+        raise SceneError(
+            f"{name} must be an angle in radians within [-2 pi, 2 pi], got {value!r} "
+            "(degrees given?)"
+        )
     return x
 
 
-def _vector(value: Any, name: str, size: int, allow_inf: bool = False) -> np.ndarray:
+def _vector(
+    value: Any, name: str, size: int, allow_inf: bool = False, angles: tuple[int, ...] = ()
+) -> np.ndarray:
+    """``size`` numbers; entries whose index is in ``angles`` are angles (see ``_number``)."""
     if not isinstance(value, list | tuple | np.ndarray) or len(value) != size:
         raise SceneError(f"{name} must be a list of {size} numbers, got {value!r}")
-    return np.array([_number(v, f"{name}[{i}]", allow_inf=allow_inf) for i, v in enumerate(value)])
+    return np.array(
+        [
+            _number(v, f"{name}[{i}]", allow_inf=allow_inf, angle=i in angles)
+            for i, v in enumerate(value)
+        ]
+    )
 
 
 def _check_keys(d: Any, allowed: set[str], required: set[str], name: str) -> None:
@@ -146,7 +179,7 @@ def _palm(d: Any) -> PalmSpec:
     return PalmSpec(
         width=_number(d["width"], "palm.width", positive=True),
         thickness=_number(d.get("thickness", 0.15), "palm.thickness", positive=True),
-        pose=_vector(d["pose"], "palm.pose", 3),
+        pose=_vector(d["pose"], "palm.pose", 3, angles=(2,)),
         density=_number(d.get("density", 1.0), "palm.density", positive=True),
     )
 
@@ -154,10 +187,10 @@ def _palm(d: Any) -> PalmSpec:
 def _finger(d: Any, i: int) -> FingerSpec:
     name = f"fingers[{i}]"
     _check_keys(d, _FINGER_KEYS, {"length", "angle"}, name)
-    limits = tuple(_vector(d.get("limits", [-math.pi, 0.0]), f"{name}.limits", 2))
+    limits = tuple(_vector(d.get("limits", [-math.pi, 0.0]), f"{name}.limits", 2, angles=(0, 1)))
     if not limits[0] < limits[1]:
         raise SceneError(f"{name}.limits must be increasing, got {[float(x) for x in limits]!r}")
-    angle = _number(d["angle"], f"{name}.angle")
+    angle = _number(d["angle"], f"{name}.angle", angle=True)
     if not limits[0] - 1e-12 <= angle <= limits[1] + 1e-12:
         raise SceneError(
             f"{name}.angle {angle!r} is outside {name}.limits {[float(x) for x in limits]!r}"
@@ -215,6 +248,33 @@ def _object(d: Any) -> ObjectSpec:
     )
 
 
+def _check_sizes(scene: Scene) -> None:
+    """Refuse object edges shorter than ``MIN_EDGE_TOLS`` contact tolerances, and derived
+    masses, weights or inertias that are not finite positive normal floats."""
+    tol = DEFAULT_CONTACT_TOL * scene.palm.width
+    v = scene.object.vertices_W0
+    edge = np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1)
+    i = int(np.argmin(edge))
+    if edge[i] < MIN_EDGE_TOLS * tol:
+        j = (i + 1) % len(v)
+        raise SceneError(
+            f"object.vertices[{i}] and [{j}] ({v[i].tolist()}, {v[j].tolist()}) are "
+            f"{float(edge[i])!r} apart, less than {MIN_EDGE_TOLS:g} contact tolerances "
+            f"({MIN_EDGE_TOLS * tol:g} = {MIN_EDGE_TOLS:g} x {DEFAULT_CONTACT_TOL:g} x palm.width)"
+        )
+    derived = {
+        "palm mass (palm.density x width x thickness)": scene.palm.mass,
+        "fingers[0] mass": scene.fingers[0].mass,
+        "fingers[1] mass": scene.fingers[1].mass,
+        "object mass": scene.object.mass,
+        "object weight (mass x gravity)": scene.object_weight,
+        "object inertia": scene.object.inertia,
+    }
+    for what, x in derived.items():
+        if not (math.isfinite(x) and MIN_POSITIVE**2 <= x <= MAX_MAGNITUDE**2):
+            raise SceneError(f"{what} is {x!r}: out of the range of representable quantities")
+
+
 def _check_placement(scene: Scene) -> None:
     """Refuse an object below the support or inside the hand, and a hand inside the support."""
     from grasp_env.kinematics import hand_polygons_W  # local: kinematics imports scene types
@@ -256,6 +316,7 @@ def scene_from_dict(d: Any, source: str | None = None) -> Scene:
         description=str(d.get("description", "")),
         source=source,
     )
+    _check_sizes(scene)
     _check_placement(scene)
     return scene
 

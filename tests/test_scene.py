@@ -670,6 +670,35 @@ BAD_SCENES = [
     bad("missing-finger1-length", delv((*F0, "length")), r"fingers\[0\]: missing key", r"'length'"),
     bad("missing-finger2-angle", delv((*F1, "angle")), r"fingers\[1\]: missing key", r"'angle'"),
     bad("missing-object-vertices", delv(OV), r"object: missing key", r"'vertices'"),
+    # -- magnitudes, degrees and edges below the contact tolerance ------------------------
+    bad("palm-width-huge", setv(("palm", "width"), 1e308), r"palm\.width", r"1e\+308"),
+    bad("object-density-huge", setv(("object", "density"), 1e200), r"object\.density", r"1e\+200"),
+    bad(
+        "object-mass-subnormal",
+        both(delv(("object", "density")), setv(("object", "mass"), 1e-320)),
+        r"object\.mass",
+        r"1e-320",
+    ),
+    bad(
+        "vertex-huge",
+        setv(OV, [[x * 1e200, y * 1e200] for x, y in FIG13_V]),
+        r"object\.vertices\[0\]\[0\]",
+        r"-1\.3e\+199",
+    ),
+    bad(
+        "finger1-angle-degrees",
+        both(setv((*F0, "angle"), -90.0), setv((*F0, "limits"), [-180.0, 0.0])),
+        r"fingers\[0\]\.limits\[0\].*degrees",
+        r"-180\.0",
+    ),
+    bad("finger2-angle-degrees", setv((*F1, "angle"), -90), r"fingers\[1\]\.angle", r"-90"),
+    bad("palm-angle-degrees", setv(("palm", "pose", 2), 30.0), r"palm\.pose\[2\]", r"30\.0"),
+    bad(
+        "edge-below-contact-tol",
+        setv(OV, [*FIG13_V[:2], [0.15 + 2e-9, 2e-9], *FIG13_V[2:]]),
+        r"object\.vertices\[1\] and \[2\].*contact tolerances",
+        r"2\.8\d*e-09 apart",
+    ),
     # -- finger count, mass and density ---------------------------------------------------
     bad(
         "three-fingers",
