@@ -307,15 +307,11 @@ def min_gap(
     return worst, worst_key
 
 
-def max_overlap(pl: Placement, bodies: list[int]) -> tuple[float, int | None]:
-    """Deepest overlap of the object with a hand body in ``bodies`` (separating-axis test).
-
-    Catches what :func:`min_gap` cannot: convex polygons whose edges cross with no vertex of
-    either inside the other (a sharp corner pushed through a thin finger). Returns
-    ``(depth, body)``: the largest over the bodies of the smallest overlap along the two
-    polygons' edge normals (<= 0 when apart: minus the separation along the best axis).
-    """
-    worst, worst_body = -np.inf, None
+def separations(pl: Placement, bodies) -> dict[int, float]:
+    """Separating-axis distance of the object from each hand body in ``bodies``: the largest
+    gap between them along an edge normal of either polygon, a lower bound on their distance
+    (minus the overlap depth when they overlap)."""
+    out = {}
     obj, obj_n = pl.obj_W, pl.obj_n_W
     for body in bodies:
         if body == geo.SUPPORT:
@@ -323,7 +319,20 @@ def max_overlap(pl: Placement, bodies: list[int]) -> tuple[float, int | None]:
         poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
         g = ((obj[:, None, :] - poly[None]) * n[None]).sum(-1)  # object vertex k, hand edge j
         g2 = ((poly[:, None, :] - obj[None]) * obj_n[None]).sum(-1)  # hand vertex j, edge k
-        depth = -max(g.min(axis=0).max(), g2.min(axis=0).max())
-        if depth > worst:
-            worst, worst_body = float(depth), body
-    return worst, worst_body
+        out[body] = float(max(g.min(axis=0).max(), g2.min(axis=0).max()))
+    return out
+
+
+def max_overlap(pl: Placement, bodies: list[int]) -> tuple[float, int | None]:
+    """Deepest overlap of the object with a hand body in ``bodies`` (separating-axis test).
+
+    Catches what :func:`min_gap` cannot: convex polygons whose edges cross with no vertex of
+    either inside the other (a sharp corner pushed through a thin finger). Returns
+    ``(depth, body)``: the largest over the bodies of minus :func:`separations` (<= 0 when
+    apart), or ``(-inf, None)`` for no hand body.
+    """
+    seps = separations(pl, bodies)
+    if not seps:
+        return -np.inf, None
+    body = min(seps, key=seps.get)
+    return -seps[body], body

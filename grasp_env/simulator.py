@@ -36,6 +36,7 @@ from grasp_env import qp
 from grasp_env.errors import SolverError
 from grasp_env.scene import Scene, load_scene
 from grasp_env.state import Event, State
+from grasp_env.width import object_width
 
 
 class SimulationError(RuntimeError):
@@ -90,6 +91,15 @@ class Simulator:
         self.ftol = 1e-9 * self.weight
         self.newton_tol = 1e-3 * self.tol
         self._scale = np.array([1.0, 1.0, 1.0 / self.rho])  # twist -> scaled twist rows
+        # Sweep bounds: how far any hand vertex lies from its body's frame origin (palm,
+        # joints), and the thinnest of the bodies, which a step may not jump across.
+        polys = kin.hand_polygons_local(self.scene)
+        self._reach = np.array([float(np.linalg.norm(p, axis=1).max()) for p in polys])
+        self._thinnest = min(
+            object_width(self.scene),
+            self.scene.palm.thickness,
+            *(f.thickness for f in self.scene.fingers),
+        )
 
     # ------------------------------------------------------------------ public API
     def reset(self) -> State:
@@ -235,26 +245,26 @@ class Simulator:
             E, v = plan
             if s >= s_end - 1e-15:
                 return q, s_end, False
-            rest = s_end - s
+            rest = min(s_end - s, self._sweep_limit(q, h, dh, v, E))
             ds = min(self.max_step, rest)
             tried = False
             if ds < rest and (determined or self._determined(q, h, E)):
                 # E fixes the pose as a function of s and holds it with positive forces: it
                 # stays the active set until an event and the pose needs no integration, so
                 # one step may go to the end of the move (the check locates any event in it).
-                ok, q_new, trigger = self._try_step(q, s, rest, E, v, h0, dh, guard=True)
+                ok, q_new, trigger, f_hi = self._try_step(q, s, rest, E, v, h0, dh, guard=True)
                 tried = ok or trigger[0] != "jam"
                 if tried:
                     ds = rest
             if not tried:
-                ok, q_new, trigger = self._try_step(q, s, ds, E, v, h0, dh)
+                ok, q_new, trigger, f_hi = self._try_step(q, s, ds, E, v, h0, dh)
             if ok:
                 if self._determined(q_new, h0 + (s + ds) * dh, E):
                     carry = (E, (q_new - q) / ds)
                 q, s = q_new, s + ds
                 banned, losing, forced = set(), None, set()
                 continue
-            s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
+            s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger, f_hi)
             if s_star - s < s_eps:
                 key = event.contacts[0] if event.contacts else None
                 if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and key is not None:
@@ -262,12 +272,7 @@ class Simulator:
                         # The offending contact cannot stay active here: plan without it.
                         banned.add(key)
                         if event.kind == "lost_contact":
-                            # The others hold the object right here (the lost force is zero):
-                            # continue with them, the old plan's velocity as the predictor.
-                            losing = (E, v)
-                            rest_E = [k for k in E if k != key]
-                            if rest_E:
-                                override = (rest_E, v)
+                            losing, override = self._release(E, v, key)
                         continue
                 if overridden:
                     continue  # the forced plan could not go on: plan afresh
@@ -311,7 +316,18 @@ class Simulator:
             events.append(Event(event.kind, s_star, event.contacts))
             q, s = q_star, s_star
             banned, losing, forced = set(), None, set()
+            if event.kind == "lost_contact" and event.contacts:
+                banned.add(event.contacts[0])
+                losing, override = self._release(E, v, event.contacts[0])
         raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
+
+    @staticmethod
+    def _release(E: list, v: np.ndarray, key) -> tuple:
+        """A contact's force reached zero: the others hold the object right there, so the
+        motion goes on with them (the old plan's velocity as Newton's predictor). Returns
+        ``(losing, override)``: the old plan, kept in case releasing fails too, and the new."""
+        rest = [k for k in E if k != key]
+        return (E, v), ((rest, v) if rest else None)
 
     def _plan(self, pl: ct.Placement, keys: list, h: np.ndarray, dh: np.ndarray, allow_fall=True):
         """Active set and least-motion velocity for hand velocity ``dh`` at a placement.
@@ -361,6 +377,34 @@ class Simulator:
         tight = pos | (slack <= 1e-9 * max(1.0, float(np.abs(xi).max(initial=0.0))))
         E = [k for k, t in zip(keys, tight, strict=True) if t]
         return res.value, E, v
+
+    def _sweep_limit(self, q: np.ndarray, h: np.ndarray, dh: np.ndarray, v: np.ndarray, E) -> float:
+        """Largest ``ds`` after which no hand body out of contact can have passed through the
+        object: its separating distance plus the thinnest body's width, over a bound on how
+        fast its vertices approach the object's (conservative advancement). Only the step's
+        end is checked for penetration, so this keeps thin fingers from tunnelling."""
+        pl = ct.Placement(self.scene, q, h)
+        bodies = [b for b in ct.broad_phase(pl, np.inf) if b != geo.SUPPORT]
+        touching = {k[0] for k in E}
+        seps = ct.separations(pl, [b for b in bodies if b not in touching])
+        if not seps:
+            return np.inf
+        half = 0.5 * self.scene.palm.width
+        turn = abs(dh[2])
+        base = float(np.hypot(dh[0], dh[1])) + turn * half  # palm origin / joints
+        speed = {
+            geo.PALM: float(np.hypot(dh[0], dh[1])) + turn * self._reach[0],
+            geo.FINGER1: base + abs(dh[2] + dh[3]) * self._reach[1],
+            geo.FINGER2: base + abs(dh[2] + dh[4]) * self._reach[2],
+        }
+        # the object moves too: twice its predicted speed, for the path's curvature
+        obj = 2.0 * (float(np.hypot(v[0], v[1])) + abs(v[2]) * self.size)
+        limit = np.inf
+        for b, d in seps.items():
+            rate = speed[b] + obj
+            if rate > 0.0:
+                limit = min(limit, (max(d, 0.0) + self._thinnest) / rate)
+        return limit
 
     # ------------------------------------------------------------------ Newton
     def _newton(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
@@ -502,7 +546,8 @@ class Simulator:
         return checks[ident], ident
 
     def _try_step(self, q, s, ds, E, v, h0, dh, guard=False):
-        """Newton step to ``s + ds`` and its consistency check: ``(ok, q_new, trigger)``.
+        """Newton step to ``s + ds`` and its consistency check: ``(ok, q_new, trigger, value)``
+        with the worst check and its value (None after a Newton failure).
 
         With ``guard``, a Newton correction larger than half the predicted motion counts as a
         failure (over a long step it may have found another root of the equations).
@@ -515,38 +560,62 @@ class Simulator:
             if np.abs((q_new - q_pred) / self._scale).max() > 0.5 * move + self.tol:
                 q_new = None
         if q_new is None:
-            return False, None, ("jam", None)
+            return False, None, ("jam", None), None
         worst, ident = self._worst(self._check(q_new, h, E))
-        return worst <= self.tol, q_new, ident
+        return worst <= self.tol, q_new, ident, worst
 
-    def _locate(self, q, s_lo, s_hi, E, v, h0, dh, trigger):
+    def _locate(self, q, s_lo, s_hi, E, v, h0, dh, trigger, f_hi):
         """Find the first point in ``(s_lo, s_hi]`` where the active set ``E`` stops being
-        consistent, to within ``contact_tol`` (bisection on ``s``).
+        consistent, to within ``contact_tol``.
 
-        Returns ``(s, q, Event)`` at the event: the triggering quantity sits within tolerance
-        of its limit there, and nothing is violated beyond tolerance.
+        The triggering quantity (a gap, an edge overshoot, a force) is smooth in ``s``, so it
+        is located by the Illinois variant of regula falsi on it (a few iterations), with
+        bisection where it is unknown (a Newton failure, another check taking over). Returns
+        ``(s, q, Event)`` at the event: the triggering quantity sits within tolerance of its
+        limit there, and nothing is violated beyond tolerance.
         """
-        q_lo = q
+        q_lo, checks_lo = q, None
+        f_lo, kept = None, 0  # kept: > 0 after low-side updates in a row, < 0 high-side
         for _ in range(200):
             mid = 0.5 * (s_lo + s_hi)
+            if f_hi is not None and trigger[0] not in ("equilibrium", "jam"):
+                if f_lo is None:
+                    if checks_lo is None:
+                        checks_lo = self._check(q_lo, h0 + s_lo * dh, E)
+                    f_lo = checks_lo.get(trigger)
+                    if f_lo is not None and f_lo >= 0.0:
+                        return s_lo, q_lo, _event(trigger, s_lo)  # past its limit already
+                target = 0.5 * self.tol  # the middle of the accepted band [0, tol]
+                if f_lo is not None and f_lo < target < f_hi:
+                    mid = s_lo + (s_hi - s_lo) * (target - f_lo) / (f_hi - f_lo)
             if mid <= s_lo or mid >= s_hi:
-                break
+                mid = 0.5 * (s_lo + s_hi)
+                if mid <= s_lo or mid >= s_hi:
+                    break
             h = h0 + mid * dh
             q_mid = self._solve_pose(q_lo + v * (mid - s_lo), h, E)
             if q_mid is None:
-                s_hi, trigger = mid, ("jam", None)
+                s_hi, trigger, f_hi, f_lo = mid, ("jam", None), None, None
                 continue
             checks = self._check(q_mid, h, E)
             worst, ident = self._worst(checks)
             if worst > self.tol:
-                s_hi, trigger = mid, ident
-            elif (
-                trigger[0] not in ("equilibrium", "jam")
-                and checks.get(trigger, -np.inf) >= -self.tol
-            ):
+                if ident != trigger:
+                    trigger, f_lo, kept = ident, None, 0
+                elif kept < 0 and f_lo is not None:
+                    f_lo *= 0.5  # Illinois: the low end stayed twice, halve its value
+                s_hi, f_hi, kept = mid, worst, min(kept, 0) - 1
+            elif trigger[0] not in ("equilibrium", "jam") and checks.get(trigger, -np.inf) >= 0:
+                # just past the limit, within tolerance: there the event has unambiguously
+                # happened (the vertex is on the new edge, the contact closed)
+                if trigger[0] == "overlap":  # first touch: the vertex that touches
+                    trigger = next((c for c in checks if c[0] == "new_contact"), trigger)
                 return mid, q_mid, _event(trigger, mid)
             else:
-                s_lo, q_lo = mid, q_mid
+                if kept > 0 and f_hi is not None:
+                    f_hi *= 0.5  # Illinois: the high end stayed twice, halve its value
+                s_lo, q_lo, checks_lo, kept = mid, q_mid, checks, max(kept, 0) + 1
+                f_lo = checks.get(trigger)
         return s_lo, q_lo, _event(trigger, s_lo)
 
     def _determined(self, q: np.ndarray, h: np.ndarray, E: list) -> bool:
