@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from grasp_env import geometry as geo
+from grasp_env import kinematics as kin
 from grasp_env import mechanics as mech
 from grasp_env import planner
 from grasp_env.scene import bundled_scenes, load_scene
@@ -116,8 +118,21 @@ def _caption(plan: planner.Plan, i: int, weight: float) -> str:
     st = plan.steps[i]
     text = f"{i}: {st.phase}"
     if math.isfinite(st.grip):
-        text += f", y* = {st.grip / weight:.3f} W"
+        text += f", y* = {st.grip / weight:.4f} W"
     return text
+
+
+def plan_bounds(plan: planner.Plan, margin: float = 0.05) -> tuple[float, float, float, float]:
+    """World box ``(x_min, x_max, y_min, y_max)`` around every hand and object of the plan, plus
+    ``margin`` palm widths, and the support band below ``y = 0``."""
+    pts = []
+    for st in plan.steps:
+        s = st.state
+        pts.append(geo.transform(s.object_pose, s.scene.object.vertices_B))
+        pts.extend(kin.hand_polygons_W(s.scene, s.hand))
+    p = np.vstack(pts)
+    m = margin * plan.steps[0].state.scene.palm.width
+    return (p[:, 0].min() - m, p[:, 0].max() + m, -m, p[:, 1].max() + m)
 
 
 def write_filmstrip(plan: planner.Plan, path: Path) -> list[int]:
@@ -126,7 +141,7 @@ def write_filmstrip(plan: planner.Plan, path: Path) -> list[int]:
 
     idx = _frame_indices(plan, FILMSTRIP_FRAMES)
     weight = plan.steps[0].state.scene.object_weight
-    renderer = Renderer(*FRAME_SIZE)
+    renderer = Renderer(*FRAME_SIZE, world_bounds=plan_bounds(plan))
     try:
         frames = [renderer.draw(plan.steps[i].state, _caption(plan, i, weight)) for i in idx]
     finally:
@@ -153,7 +168,7 @@ def write_gif(plan: planner.Plan, path: Path) -> None:
 
     imageio = _viz("imageio.v2")
     weight = plan.steps[0].state.scene.object_weight
-    renderer = Renderer(*GIF_SIZE)
+    renderer = Renderer(*GIF_SIZE, world_bounds=plan_bounds(plan))
     try:
         frames = [
             renderer.draw(st.state, _caption(plan, i, weight)) for i, st in enumerate(plan.steps)
@@ -174,9 +189,10 @@ def write_branch_plot(sim: Simulator, plan: planner.Plan, path: Path) -> list[di
     for c in curves:
         if not c["q1"]:
             continue
-        dropped = ", ".join(str(k + 1) for k in c["dropped"]) or "none"
+        dropped = ", ".join(str(k + 1) for k in c["dropped"])
+        label = f"contact {dropped} broken" if dropped else "all four contacts kept"
         style = "-" if c["form_closure"] else ":"
-        label = f"contact {dropped} broken" + ("" if c["form_closure"] else " (no form closure)")
+        label += "" if c["form_closure"] else " (no form closure)"
         ax.plot(c["q1"], np.asarray(c["grip"]) / weight, style, label=label)
     adj = [(st.state.hand[3], st.grip / weight) for st in plan.steps if st.phase != "lifting"]
     adj = [p for p in adj if math.isfinite(p[1])]
