@@ -1,0 +1,293 @@
+"""Property-based stress tests of the simulator and the environment on random convex shapes.
+
+Hypothesis draws convex polygons over the ranges of issue 8 (3-12 vertices, diameter 5%-80% of
+the palm width, aspect up to 1:20, masses 1e-3..10, nearly collinear vertices, very short
+edges, nearly parallel edges, slivers: :func:`soak.stress_polygon`) and random hand paths or
+env action sequences. After every step the state is checked by :func:`soak.check_state`, an
+independent re-computation (separating-axis penetration, contact gaps from the points and
+normals, every touching vertex-body pair listed, forces >= 0, the object's equilibrium
+residual, and the velocity LP's optimum solved with scipy's HiGHS).
+
+The default run keeps ``max_examples`` small; ``pytest -m slow`` runs the larger variants.
+Failures hypothesis shrank are pinned below as explicit regression tests.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, Phase, assume, given, settings
+from hypothesis import strategies as st
+
+import grasp_env
+from grasp_env import Simulator
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.errors import SceneError
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import soak
+
+#: Increment cap of one hand move: no valid move needs more than a few dozen increments.
+MAX_ITERATIONS = 400
+#: Default run: few examples and no shrinking (shrinking a failure takes minutes; the slow
+#: variants shrink, and ``print_blob`` gives the failing example's reproduction seed).
+FAST = settings(
+    max_examples=10,
+    deadline=None,
+    phases=[Phase.explicit, Phase.reuse, Phase.generate],
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
+SLOW = settings(
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
+
+
+# ---------------------------------------------------------------------------------------
+# Strategies
+# ---------------------------------------------------------------------------------------
+
+
+@st.composite
+def polygons(draw: st.DrawFn) -> np.ndarray:
+    """A stress polygon resting on y = 0 (see :func:`soak.stress_polygon`)."""
+    kind = draw(st.sampled_from(soak.KINDS))
+    n = draw(st.integers(3, 12))
+    size = draw(st.floats(0.05, 0.8))
+    aspect = math.exp(draw(st.floats(0.0, math.log(20.0))))
+    eps = 10 ** draw(st.floats(-6.0, -2.0))
+    seed = draw(st.integers(0, 2**32 - 1))
+    return soak.stress_polygon(np.random.default_rng(seed), n, size, aspect, kind, eps)
+
+
+@st.composite
+def scenes(draw: st.DrawFn) -> grasp_env.Scene:
+    poly = draw(polygons())
+    mass = 10 ** draw(st.floats(-3.0, 1.0))
+    try:
+        return grasp_env.load_scene(soak.stress_scene(poly, mass))
+    except SceneError:
+        assume(False)  # wider than the hanging fingers: not a valid start
+        raise
+
+
+#: One hand move: finger increments (biased to closing) and, or not, a palm increment.
+moves = st.tuples(
+    st.floats(-0.1, 0.25),
+    st.floats(-0.1, 0.25),
+    st.one_of(
+        st.none(),
+        st.tuples(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05), st.floats(-0.1, 0.1)),
+    ),
+)
+
+
+def tol_of(scene: grasp_env.Scene, contact_tol: float = 1e-9) -> float:
+    return contact_tol * scene.palm.width
+
+
+def assert_valid(scene, object_pose, hand, contacts, tol: float, where: str) -> soak.Check:
+    chk = soak.check_state(scene, object_pose, hand, contacts, tol)
+    assert not chk.violations, f"{where}: " + "; ".join(chk.violations)
+    return chk
+
+
+def run_path(scene: grasp_env.Scene, path: list) -> None:
+    """Move the hand along ``path`` (increments from the planned targets) checking every
+    returned state, and that the hand ends on its straight line."""
+    sim = Simulator(scene, max_iterations=MAX_ITERATIONS)
+    tol = tol_of(scene)
+    state = sim.reset()
+    assert_valid(scene, state.object_pose, state.hand, state.contacts, tol, "reset")
+    target = state.hand.copy()
+    lim = scene.joint_limits
+    for m, (d1, d2, palm) in enumerate(path):
+        target = target.copy()
+        target[3] += d1
+        target[4] -= d2
+        if palm is not None:
+            target[:3] += palm
+        h0 = state.hand.copy()
+        new = sim.move_hand(state, palm=target[:3] if palm is not None else None,
+                            fingers=target[3:])  # fmt: skip
+        where = f"move {m} from {h0.tolist()} to {target.tolist()}"
+        assert_valid(scene, new.object_pose, new.hand, new.contacts, tol, where)
+        h1 = h0.copy()
+        if palm is not None:
+            h1[:3] = target[:3]
+        h1[3:] = np.clip(target[3:], lim[:, 0], lim[:, 1])
+        dh = h1 - h0
+        if np.any(dh):
+            s = float((new.hand - h0) @ dh / (dh @ dh))
+            assert -1e-12 <= s <= 1 + 1e-12, f"{where}: hand left its move (s = {s})"
+            np.testing.assert_allclose(new.hand, h0 + s * dh, atol=1e-9, err_msg=where)
+            if not (new.jammed or new.hand_blocked):
+                np.testing.assert_allclose(new.hand, h1, atol=1e-12, err_msg=where)
+        state = new
+
+
+def run_env(scene: grasp_env.Scene, start: str, actions: list, seed: int = 0) -> None:
+    """Step the env with ``actions`` (palm control), checking the observation and ``info``."""
+    env = FrictionlessGraspEnv(scene=scene, palm_control=True, start=start)
+    tol = tol_of(scene, env.contact_tol)
+    obs, info = env.reset(seed=seed)
+    for k, a in enumerate([None, *actions]):
+        if a is not None:
+            obs, reward, term, _, info = env.step(np.array(a, dtype=np.float32))
+            assert math.isfinite(reward), f"step {k}: reward {reward}"
+            assert "sim_error" not in info, f"step {k}: {info['sim_error']}"
+        assert env.observation_space.contains(obs), f"step {k}: observation {obs}"
+        hand = np.r_[info["palm_pose"], info["finger_angles"]]
+        assert_valid(scene, info["object_pose"], hand, info["contacts"], tol, f"step {k}")
+        if a is not None and term:
+            obs, info = env.reset(seed=k)
+    env.close()
+
+
+# ---------------------------------------------------------------------------------------
+# The checker itself must catch broken states (else every property below is vacuous)
+# ---------------------------------------------------------------------------------------
+
+
+def _fig13_state():
+    sim = Simulator("fig13")
+    return sim, sim.reset()
+
+
+@pytest.mark.parametrize(
+    ("case", "expect"),
+    [
+        ("valid", None),
+        ("sunk", "penetration"),
+        ("negative_force", "force"),
+        ("dropped_contact", "unlisted"),
+        ("shifted_point", "contact"),
+        ("nan_pose", "nan"),
+        ("wrong_force", "equilibrium"),
+        ("finger_inside", "penetration"),
+    ],
+)
+def test_checker_catches_broken_states(case: str, expect: str | None) -> None:
+    """:func:`soak.check_state` accepts a valid state and flags each kind of broken one."""
+    sim, state = _fig13_state()
+    scene, tol = sim.scene, tol_of(sim.scene)
+    pose, hand = state.object_pose.copy(), state.hand.copy()
+    contacts = [c.as_dict() for c in state.contacts]
+    if case == "sunk":
+        pose[1] -= 1e-6
+    elif case == "negative_force":
+        contacts[0]["force"] = -1e-3
+    elif case == "dropped_contact":
+        contacts = contacts[:1]
+    elif case == "shifted_point":
+        contacts[0]["point"] = contacts[0]["point"] + [0.0, 1e-6]
+    elif case == "nan_pose":
+        pose[2] = math.nan
+    elif case == "wrong_force":
+        contacts[0]["force"] *= 1.001
+    elif case == "finger_inside":
+        hand[3] += 0.6  # finger 1 swings into the object
+    chk = soak.check_state(scene, pose, hand, contacts, tol)
+    if expect is None:
+        assert chk.violations == []
+    else:
+        assert any(v.startswith(expect) for v in chk.violations), chk.violations
+
+
+# ---------------------------------------------------------------------------------------
+# Properties
+# ---------------------------------------------------------------------------------------
+
+
+@FAST
+@given(poly=polygons())
+def test_random_polygons_are_valid_scenes(poly: np.ndarray) -> None:
+    """Every generated polygon is strictly convex, CCW, 3-13 vertices, resting on edge 0."""
+    n = len(poly)
+    assert 3 <= n <= 13
+    d = np.roll(poly, -1, axis=0) - poly
+    turns = d[:, 0] * np.roll(d, -1, axis=0)[:, 1] - d[:, 1] * np.roll(d, -1, axis=0)[:, 0]
+    assert np.all(turns > 0)
+    assert poly[0, 1] == 0.0 and poly[1, 1] == 0.0 and poly[:, 1].min() >= 0.0
+
+
+@FAST
+@given(scene=scenes(), path=st.lists(moves, min_size=1, max_size=8))
+def test_random_hand_paths_keep_invariants(scene: grasp_env.Scene, path: list) -> None:
+    run_path(scene, path)
+
+
+action = st.tuples(*[st.floats(-1.0, 1.0)] * 5)
+
+
+@FAST
+@given(
+    scene=scenes(),
+    start=st.sampled_from(["scene", "preliftoff", "random"]),
+    actions=st.lists(action, min_size=1, max_size=10),
+)
+def test_random_env_actions_keep_invariants(scene, start: str, actions: list) -> None:
+    run_env(scene, start, actions)
+
+
+@pytest.mark.slow
+@SLOW
+@given(scene=scenes(), path=st.lists(moves, min_size=1, max_size=25))
+def test_random_hand_paths_keep_invariants_slow(scene: grasp_env.Scene, path: list) -> None:
+    run_path(scene, path)
+
+
+@pytest.mark.slow
+@SLOW
+@given(
+    scene=scenes(),
+    start=st.sampled_from(["scene", "preliftoff", "random"]),
+    actions=st.lists(action, min_size=1, max_size=40),
+)
+def test_random_env_actions_keep_invariants_slow(scene, start: str, actions: list) -> None:
+    run_env(scene, start, actions)
+
+
+# ---------------------------------------------------------------------------------------
+# Regression cases (examples hypothesis shrank)
+# ---------------------------------------------------------------------------------------
+
+
+#: Found by test_random_hand_paths_keep_invariants (shrunk): a heptagon of mass 1 (world
+#: vertices at the scene placement, edge 0 on the support) in the fig13 hand.
+TUNNEL_POLYGON = [
+    [0.06182153, 0.0],
+    [0.54913621, 0.0],
+    [0.70430312, 0.36064135],
+    [0.46702148, 0.6856017],
+    [0.18810496, 0.70201558],
+    [0.01859941, 0.59877433],
+    [-0.07809734, 0.43559512],
+]
+
+
+def test_regression_object_tunnels_through_finger() -> None:
+    """Finger 1 closes onto the heptagon, the palm tilts by 0.077 rad and is lowered by 0.047:
+    the palm pushes the object along the support towards finger 2, which must stop it (a new
+    contact, then a jam or the object squeezed up) -- never let it pass through (with the
+    simulator of commit b5f21e7 the object ends crossed by finger 2, no vertex of either body
+    inside the other, penetration 0.05..0.17; reproducer /tmp/sim_bugs/tunnel_through_finger.py).
+    """
+    poly = np.array(TUNNEL_POLYGON) - [0.30381687, 0.0]
+    scene = grasp_env.load_scene(soak.stress_scene(poly, 1.0))
+    run_path(
+        scene,
+        [
+            (0.16279415653728432, 0.0, None),
+            (0.0, 0.0, (0.0, 0.0, 0.0767136501744948)),
+            (0.0, 0.0, None),
+            (0.2360349946698365, 0.0, None),
+            (0.0, 0.0, (0.0, -0.04713586966262589, 0.0)),
+        ],
+    )
