@@ -15,7 +15,6 @@ from pathlib import Path
 
 #: Default folder of the markdown results.
 RESULTS = Path(__file__).resolve().parent / "results"
-REPO = Path(__file__).resolve().parent.parent
 
 
 def headless() -> None:

@@ -8,7 +8,8 @@ categorised function on its call path: a function matching a rule in :data:`PHAS
 own category; any other function (numpy, scipy, helpers) is charged to its callers, split in
 proportion to the time spent under each caller. So "Newton" includes the ``lstsq`` calls
 made by ``Simulator._newton``, and "LP solve" the basis enumeration or HiGHS however it is
-reached, except where a nearer category (y*, rest forces) calls it.
+reached, except where a nearer category (y*, rest forces) calls it. Simulator helpers that
+match no rule (new ones included) are charged to their callers.
 
 cProfile slows Python-heavy code: the page gives the unprofiled us/step of the same run
 beside the profiled total. ``profile.json`` keeps the numbers; ``--baseline`` with an older
@@ -32,7 +33,7 @@ from pathlib import Path
 import gymnasium as gym
 
 import grasp_env
-from benchmarks.common import RESULTS, git_commit, headless, machine_line, table
+from benchmarks.common import RESULTS, git_commit, headless, machine_line, median_time, table
 from benchmarks.throughput import RandomActions
 from benchmarks.work_precision import closing_motion
 
@@ -66,7 +67,12 @@ PHASES: list[tuple[str, str, str]] = [
         r"grasp_env/(contacts|kinematics|geometry)\.py$",
         r"",
     ),
-    ("simulator loop (move_hand, _advance, _try_step)", r"grasp_env/simulator\.py$", r""),
+    ("contact forces (equilibrium solves)", r"grasp_env/simulator\.py$", r"forces"),
+    (
+        "simulator loop (move_hand, _advance, _try_step)",
+        r"grasp_env/simulator\.py$",
+        r"^(move_hand|_advance|_try_step|settle|reset|__init__)$",
+    ),
     ("observation", r"frictionless_grasp\.py$", r"_get_obs|_in_palm_frame"),
     ("reward", r"frictionless_grasp\.py$", r"_get_rew|_potential"),
     ("reset (episode starts)", r"frictionless_grasp\.py$", r"^reset$|_preliftoff|_perturb"),
@@ -76,6 +82,7 @@ PHASES: list[tuple[str, str, str]] = [
 ]
 _RULES = [(name, re.compile(f), re.compile(fn)) for name, f, fn in PHASES]
 OTHER = "other (uncharged)"
+PLAIN_REPEAT = 3  #: unprofiled runs of a workload (median)
 
 
 def _own_category(func: tuple[str, int, str]) -> str | None:
@@ -139,11 +146,9 @@ def _closing() -> None:
 
 
 def profile(work: Callable[[], object], units: int) -> dict:
-    """Unprofiled and profiled us per unit of ``work`` (one call covers ``units``), and us per
-    unit by category."""
-    t0 = time.perf_counter()
-    work()
-    plain = (time.perf_counter() - t0) / units
+    """Unprofiled (median of :data:`PLAIN_REPEAT` calls) and profiled us per unit of ``work``
+    (one call covers ``units``), and us per unit by category."""
+    plain = median_time(work, PLAIN_REPEAT)[0] / units
     prof = cProfile.Profile()
     prof.enable()
     work()
