@@ -291,3 +291,70 @@ def test_regression_object_tunnels_through_finger() -> None:
             (0.0, 0.0, (0.0, -0.04713586966262589, 0.0)),
         ],
     )
+
+
+# ---------------------------------------------------------------------------------------
+# Failures inside the solver (issue 8, item 6)
+# ---------------------------------------------------------------------------------------
+
+
+def _closing_run(sim: Simulator, moves: int = 12) -> list[grasp_env.State]:
+    states = [sim.reset()]
+    for _ in range(moves):
+        q1, q2 = states[-1].finger_angles
+        states.append(sim.move_hand(states[-1], fingers=(q1 + 0.04, q2 - 0.04)))
+    return states
+
+
+def test_fast_lp_failure_falls_back_to_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    """When the fast LP cannot decide (injected: it always raises SolverError), the motion LP
+    is solved on the reference path (HiGHS): the fig13 closing motion is the same as with
+    ``lp_solver="highs"`` and every state is valid."""
+    from grasp_env import fastlp
+    from grasp_env.errors import SolverError
+
+    reference = _closing_run(Simulator("fig13", lp_solver="highs"))
+
+    def fail(*args, **kwargs):
+        raise SolverError("injected failure", "undecided")
+
+    monkeypatch.setattr(fastlp, "solve_velocity_lp", fail)
+    states = _closing_run(Simulator("fig13", lp_solver="fast"))
+    tol = tol_of(states[0].scene)
+    for i, (a, b) in enumerate(zip(states, reference, strict=True)):
+        assert_valid(a.scene, a.object_pose, a.hand, a.contacts, tol, f"move {i}")
+        np.testing.assert_allclose(a.object_pose, b.object_pose, atol=1e-9, err_msg=f"move {i}")
+        np.testing.assert_allclose(a.hand, b.hand, atol=1e-12)
+
+
+def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every LP fails (injected on both paths): ``step`` must not raise; it ends the episode
+    with ``info["sim_error"]`` naming the failure and leaves the state as it was; once the
+    solver works again, ``reset`` and ``step`` work."""
+    from grasp_env import fastlp, mechanics
+    from grasp_env.errors import SolverError
+
+    env = FrictionlessGraspEnv("fig13", palm_control=True)
+    obs0, info0 = env.reset(seed=0)
+    good = np.array([1.0, 1.0, 0.0, -1.0, 0.0], dtype=np.float32)  # close and lower the palm
+
+    def fail(*args, **kwargs):
+        raise SolverError("injected failure", "numerical")
+
+    with monkeypatch.context() as m:
+        m.setattr(fastlp, "solve_velocity_lp", fail)
+        m.setattr(mechanics, "velocity_lp", fail)
+        obs, reward, term, _, info = env.step(good)
+    assert term and "sim_error" in info and "injected failure" in info["sim_error"]
+    np.testing.assert_array_equal(obs, obs0)
+    np.testing.assert_array_equal(info["object_pose"], info0["object_pose"])
+    assert math.isfinite(reward)
+    obs, info = env.reset(seed=0)
+    np.testing.assert_array_equal(obs, obs0)
+    obs, reward, term, _, info = env.step(good)
+    assert "sim_error" not in info and not term
+    assert_valid(
+        env.unwrapped._state.scene, info["object_pose"],
+        np.r_[info["palm_pose"], info["finger_angles"]], info["contacts"],
+        tol_of(env.unwrapped._state.scene), "after recovery",
+    )  # fmt: skip
