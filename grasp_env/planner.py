@@ -5,16 +5,19 @@ records every step (:class:`PlanStep`). It assumes exact knowledge of the scene,
 does. Phases:
 
 1. **Pre-liftoff.** From the tippability regions (section 2.4): no region, no plan. Else look
-   for a hand placement with one fingertip at a support contact and the other finger touching
-   the object inside the matching region (Fig. 4). If the hand's kinematics allow none, centre
-   the palm over the object, parallel to the support and just above the longer finger's reach
-   of it, close the fingers until they touch, and decide by the velocity LP whether squeezing
-   tips the object (and which support contact breaks).
-2. **Lifting.** Greedy finger (and palm) increments that move the object toward the palm,
-   simulated after every increment, until form closure (the hand jams in form closure).
-   Once the object is off the support the fingertip distance stays below the object's width
-   (Toussaint's no-drop argument); a constrained fall is recovered by lifting on from where
-   the object came to rest.
+   for a hand placement, palm parallel to the support, with one fingertip at a support
+   contact and the other finger touching the object inside the matching region (Fig. 4).
+   Also centre the palm over the object, parallel to the support and just above the longer
+   finger's reach of it, close the fingers until they touch, and decide by the velocity LP
+   whether squeezing tips the object (and which support contact breaks). Lifting starts from
+   the tipping placement if there is one, and starts again from the centred one (a
+   re-placement) if it gets stuck.
+2. **Lifting.** Finger increments with the palm fixed, simulated after every increment: the
+   paper's equal-rate squeeze while it makes progress toward the palm, else the best of a few
+   alternatives (one finger, rolling, letting go a little), until form closure with the
+   object off the support. Once the fingertips are closer than the object's width with the
+   object off the support they stay so (Toussaint's no-drop argument); a constrained fall is
+   recovered by lifting on from where the object came to rest.
 3. **Grip adjustment.** Keep four contacts, treat ``q1`` as the independent variable, solve
    ``q2`` and the object pose from the four contact equations (eq. 28), and step along the
    finite-difference gradient of ``y*`` (eq. 37). At a five-contact configuration every
