@@ -233,10 +233,11 @@ def _locally_valid(pl: Placement, key: ContactKey, tol: float) -> bool:
     m = len(verts)
     p = verts[v]
     # Nearly flush edges (an edge along an edge) pass: the slack grows with the neighbour's
-    # distance, as for an angle of 1e-7 rad.
+    # distance, as for an angle of 1e-7 rad, and is at least a few tolerances (an edge that
+    # has just come to lie along another, located to within tol at both of its ends).
     for nbr in (verts[v - 1], verts[(v + 1) % m]):
         d = nbr - p
-        if n @ d < -max(tol, 1e-7 * float(np.hypot(d[0], d[1]))):
+        if n @ d < -max(4.0 * tol, 1e-7 * float(np.hypot(d[0], d[1]))):
             return False
     return True
 

@@ -89,7 +89,8 @@ class Simulator:
         self.rho = mech.gyration_radius(self.scene)
         self.weight = self.scene.object_weight
         self.ftol = 1e-9 * self.weight
-        self.newton_tol = 1e-3 * self.tol
+        # Newton stops well inside the tolerance, but not below what doubles can resolve
+        self.newton_tol = max(1e-3 * self.tol, 64 * np.finfo(float).eps * L)
         self._scale = np.array([1.0, 1.0, 1.0 / self.rho])  # twist -> scaled twist rows
         # Sweep bounds: how far any hand vertex lies from its body's frame origin (palm,
         # joints), and the thinnest of the bodies, which a step may not jump across.
@@ -252,19 +253,19 @@ class Simulator:
                 # E fixes the pose as a function of s and holds it with positive forces: it
                 # stays the active set until an event and the pose needs no integration, so
                 # one step may go to the end of the move (the check locates any event in it).
-                ok, q_new, trigger, f_hi = self._try_step(q, s, rest, E, v, h0, dh, guard=True)
+                ok, q_new, trigger = self._try_step(q, s, rest, E, v, h0, dh, guard=True)
                 tried = ok or trigger[0] != "jam"
                 if tried:
                     ds = rest
             if not tried:
-                ok, q_new, trigger, f_hi = self._try_step(q, s, ds, E, v, h0, dh)
+                ok, q_new, trigger = self._try_step(q, s, ds, E, v, h0, dh)
             if ok:
                 if self._determined(q_new, h0 + (s + ds) * dh, E):
                     carry = (E, (q_new - q) / ds)
                 q, s = q_new, s + ds
                 banned, losing, forced = set(), None, set()
                 continue
-            s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger, f_hi)
+            s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
             if s_star - s < s_eps:
                 key = event.contacts[0] if event.contacts else None
                 if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and key is not None:
@@ -316,9 +317,6 @@ class Simulator:
             events.append(Event(event.kind, s_star, event.contacts))
             q, s = q_star, s_star
             banned, losing, forced = set(), None, set()
-            if event.kind == "lost_contact" and event.contacts:
-                banned.add(event.contacts[0])
-                losing, override = self._release(E, v, event.contacts[0])
         raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
 
     @staticmethod
@@ -546,8 +544,7 @@ class Simulator:
         return checks[ident], ident
 
     def _try_step(self, q, s, ds, E, v, h0, dh, guard=False):
-        """Newton step to ``s + ds`` and its consistency check: ``(ok, q_new, trigger, value)``
-        with the worst check and its value (None after a Newton failure).
+        """Newton step to ``s + ds`` and its consistency check: ``(ok, q_new, trigger)``.
 
         With ``guard``, a Newton correction larger than half the predicted motion counts as a
         failure (over a long step it may have found another root of the equations).
@@ -560,62 +557,40 @@ class Simulator:
             if np.abs((q_new - q_pred) / self._scale).max() > 0.5 * move + self.tol:
                 q_new = None
         if q_new is None:
-            return False, None, ("jam", None), None
+            return False, None, ("jam", None)
         worst, ident = self._worst(self._check(q_new, h, E))
-        return worst <= self.tol, q_new, ident, worst
+        return worst <= self.tol, q_new, ident
 
-    def _locate(self, q, s_lo, s_hi, E, v, h0, dh, trigger, f_hi):
+    def _locate(self, q, s_lo, s_hi, E, v, h0, dh, trigger):
         """Find the first point in ``(s_lo, s_hi]`` where the active set ``E`` stops being
-        consistent, to within ``contact_tol``.
+        consistent, to within ``contact_tol`` (bisection on ``s``).
 
-        The triggering quantity (a gap, an edge overshoot, a force) is smooth in ``s``, so it
-        is located by the Illinois variant of regula falsi on it (a few iterations), with
-        bisection where it is unknown (a Newton failure, another check taking over). Returns
-        ``(s, q, Event)`` at the event: the triggering quantity sits within tolerance of its
-        limit there, and nothing is violated beyond tolerance.
+        Returns ``(s, q, Event)`` at the event: the triggering quantity sits within tolerance
+        of its limit there, and nothing is violated beyond tolerance.
         """
-        q_lo, checks_lo = q, None
-        f_lo, kept = None, 0  # kept: > 0 after low-side updates in a row, < 0 high-side
+        q_lo = q
         for _ in range(200):
             mid = 0.5 * (s_lo + s_hi)
-            if f_hi is not None and trigger[0] not in ("equilibrium", "jam"):
-                if f_lo is None:
-                    if checks_lo is None:
-                        checks_lo = self._check(q_lo, h0 + s_lo * dh, E)
-                    f_lo = checks_lo.get(trigger)
-                    if f_lo is not None and f_lo >= 0.0:
-                        return s_lo, q_lo, _event(trigger, s_lo)  # past its limit already
-                target = 0.5 * self.tol  # the middle of the accepted band [0, tol]
-                if f_lo is not None and f_lo < target < f_hi:
-                    mid = s_lo + (s_hi - s_lo) * (target - f_lo) / (f_hi - f_lo)
             if mid <= s_lo or mid >= s_hi:
-                mid = 0.5 * (s_lo + s_hi)
-                if mid <= s_lo or mid >= s_hi:
-                    break
+                break
             h = h0 + mid * dh
             q_mid = self._solve_pose(q_lo + v * (mid - s_lo), h, E)
             if q_mid is None:
-                s_hi, trigger, f_hi, f_lo = mid, ("jam", None), None, None
+                s_hi, trigger = mid, ("jam", None)
                 continue
             checks = self._check(q_mid, h, E)
             worst, ident = self._worst(checks)
             if worst > self.tol:
-                if ident != trigger:
-                    trigger, f_lo, kept = ident, None, 0
-                elif kept < 0 and f_lo is not None:
-                    f_lo *= 0.5  # Illinois: the low end stayed twice, halve its value
-                s_hi, f_hi, kept = mid, worst, min(kept, 0) - 1
-            elif trigger[0] not in ("equilibrium", "jam") and checks.get(trigger, -np.inf) >= 0:
-                # just past the limit, within tolerance: there the event has unambiguously
-                # happened (the vertex is on the new edge, the contact closed)
+                s_hi, trigger = mid, ident
+            elif (
+                trigger[0] not in ("equilibrium", "jam")
+                and checks.get(trigger, -np.inf) >= -self.tol
+            ):
                 if trigger[0] == "overlap":  # first touch: the vertex that touches
                     trigger = next((c for c in checks if c[0] == "new_contact"), trigger)
                 return mid, q_mid, _event(trigger, mid)
             else:
-                if kept > 0 and f_hi is not None:
-                    f_hi *= 0.5  # Illinois: the high end stayed twice, halve its value
-                s_lo, q_lo, checks_lo, kept = mid, q_mid, checks, max(kept, 0) + 1
-                f_lo = checks.get(trigger)
+                s_lo, q_lo = mid, q_mid
         return s_lo, q_lo, _event(trigger, s_lo)
 
     def _determined(self, q: np.ndarray, h: np.ndarray, E: list) -> bool:
