@@ -270,7 +270,7 @@ def main(argv: list[str] | None = None) -> int:
     plan = planner.plan_grasp(scene, sim=sim, dq=args.dq)
     print(f"scene: {scene.name}")
     if plan.status == "not_tippable":
-        print(f"cannot be lifted without friction: {plan.message}")
+        print(f"not tippable: {plan.message}")
         return EXIT_NOT_TIPPABLE
     with open(args.out / "plan.json", "w") as f:
         json.dump({"scene": scene.name, **plan_to_dict(plan)}, f, indent=1)
