@@ -15,6 +15,8 @@ from pathlib import Path
 
 #: Default folder of the markdown results.
 RESULTS = Path(__file__).resolve().parent / "results"
+#: The repository root.
+REPO = Path(__file__).resolve().parent.parent
 
 
 def headless() -> None:
