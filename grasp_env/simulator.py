@@ -23,6 +23,7 @@ velocity LP: the object falls along the steepest admissible descent of its poten
 
 from __future__ import annotations
 
+import copy
 import itertools
 
 import numpy as np
@@ -150,11 +151,37 @@ class Simulator:
         if blocked:
             events.append(Event("hand_blocked", s_end))
         touching = [c.key for c in state.contacts]  # detected at (q, h0) by _make_state
-        q, s_reached, jammed = self._advance(
-            state.object_pose.copy(), h0, h1, s_end, events, touching
-        )
-        h = h0 + s_reached * (h1 - h0)
-        return self._make_state(q, h, events, jammed=jammed, blocked=blocked)
+        start = events.copy()
+        try:
+            q, s_reached, jammed = self._advance(
+                state.object_pose.copy(), h0, h1, s_end, events, touching
+            )
+            h = h0 + s_reached * (h1 - h0)
+            return self._make_state(q, h, events, jammed=jammed, blocked=blocked)
+        except (SimulationError, SolverError) as first:
+            # A failed solve: once more on the reference LP path with smaller increments
+            # (nothing of the failed attempt is kept); a second failure is reported.
+            careful, events = self._careful(), start
+            try:
+                q, s_reached, jammed = careful._advance(
+                    state.object_pose.copy(), h0, h1, s_end, events, None
+                )
+                h = h0 + s_reached * (h1 - h0)
+                return careful._make_state(q, h, events, jammed=jammed, blocked=blocked)
+            except (SimulationError, SolverError) as second:
+                raise SimulationError(
+                    f"move failed ({first}) and again on the reference path with smaller "
+                    f"increments ({second})"
+                ) from second
+
+    def _careful(self) -> Simulator:
+        """A copy of this simulator on the reference LP path (HiGHS) with a quarter of the
+        increment and fall step, for retrying a move whose solves failed."""
+        careful = copy.copy(self)
+        careful.lp_solver = "highs"
+        careful.max_step = self.max_step / 4.0
+        careful.fall_step = self.fall_step / 4.0
+        return careful
 
     # ------------------------------------------------------------------ hand path
     def _support_limit(self, h0: np.ndarray, h1: np.ndarray) -> tuple[float, bool]:

@@ -1248,3 +1248,51 @@ def test_bad_arguments_raise_value_error(case: str) -> None:
     np.testing.assert_allclose(state.finger_angles, (q1 - 0.1, q2 + 0.1), atol=1e-15)
     np.testing.assert_allclose(state.object_pose, start.object_pose, atol=1e-12)
     np.testing.assert_array_equal(start.hand, sim.scene.initial_hand)  # input not mutated
+
+
+# ---------------------------------------------------------------------------------------
+# Failed solves: one retry on the reference path with smaller increments
+# ---------------------------------------------------------------------------------------
+
+
+def test_failed_fast_lp_retries_on_reference_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """When the fast LP path fails inside a move, the move is redone on the HiGHS path with
+    smaller increments, and ends where a simulator on the reference path ends."""
+    from grasp_env import mechanics
+    from grasp_env.errors import SolverError
+
+    real = mechanics.motion_lp
+    calls = {"fast": 0}
+
+    def flaky(V, xi_, weight, solver="fast"):
+        if solver == "fast":
+            calls["fast"] += 1
+            raise SolverError("injected", "fast path down")
+        return real(V, xi_, weight, solver)
+
+    fingers = (-HALF_PI + 0.45, -HALF_PI - 0.45)
+    reference = Simulator(scene_of("fig13"), lp_solver="highs", max_step=0.0625)
+    expected = reference.move_hand(reference.reset(), fingers=fingers)
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    monkeypatch.setattr(mechanics, "motion_lp", flaky)
+    state = sim.move_hand(start, fingers=fingers)
+    assert calls["fast"] > 0, "the injected failure should have been hit"
+    np.testing.assert_allclose(state.object_pose, expected.object_pose, atol=POSE_TOL)
+    assert_invariants(state, tol_of(sim), "retried move")
+    assert sim.lp_solver == "fast", "the retry must not change the simulator itself"
+
+
+def test_failed_retry_raises_simulation_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """If the reference path fails too, the move raises SimulationError naming both causes."""
+    from grasp_env import mechanics
+    from grasp_env.errors import SolverError
+
+    def broken(V, xi_, weight, solver="fast"):
+        raise SolverError("injected", f"{solver} path down")
+
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    monkeypatch.setattr(mechanics, "motion_lp", broken)
+    with pytest.raises(grasp_env.SimulationError, match=r"fast path down.*highs path down"):
+        sim.move_hand(start, fingers=(-HALF_PI + 0.45, -HALF_PI - 0.45))
