@@ -178,41 +178,43 @@ def broad_phase(pl: Placement, margin: float) -> list[int]:
 
 
 def candidate_gaps(
-    pl: Placement, bodies: list[int], slack: float = 0.0
+    pl: Placement, bodies: list[int], slack: float = 0.0, max_gap: float = np.inf
 ) -> list[tuple[ContactKey, float, float]]:
-    """Every vertex-edge pair of the object and ``bodies`` whose vertex projects onto the edge.
+    """Every vertex-edge pair of the object and ``bodies`` whose vertex projects onto the edge
+    and lies within ``max_gap`` of its line.
 
-    Returns ``(key, gap, t)`` for pairs with ``t`` in [0, 1], widened at both ends by
-    ``slack`` (a length): events are located to within the contact tolerance, so a vertex
-    that has just reached an edge's end (a vertex-vertex touch) may project a hair outside it
-    (support: all object vertices). Vectorised over vertices and edges of each body pair.
+    Returns ``(key, gap, t)`` for pairs with ``|gap| <= max_gap`` and ``t`` in [0, 1], widened
+    at both ends by ``slack`` (a length): events are located to within the contact
+    tolerance, so a vertex that has just reached an edge's end (a vertex-vertex touch) may
+    project a hair outside it (support: all object vertices). Vectorised over vertices and
+    edges of each body pair; only the pairs that pass are visited in Python.
     """
     out: list[tuple[ContactKey, float, float]] = []
     obj, obj_n = pl.obj_W, pl.obj_n_W
-    n_obj = len(obj)
     obj_d = np.roll(obj, -1, axis=0) - obj
     for body in bodies:
         if body == geo.SUPPORT:
-            out.extend(((body, EDGE, k, 0), float(obj[k, 1]), 0.5) for k in range(n_obj))
+            for k in np.nonzero(np.abs(obj[:, 1]) <= max_gap)[0]:
+                out.append(((body, EDGE, int(k), 0), float(obj[k, 1]), 0.5))
             continue
         poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
         d = np.roll(poly, -1, axis=0) - poly
-        # object vertex k on hand edge j
-        rel = obj[:, None, :] - poly[None, :, :]  # (k, j, 2)
-        gap = (rel * n[None]).sum(-1)
-        L = np.sqrt((d * d).sum(-1))
-        t = (rel * d[None]).sum(-1) / (L * L)[None]
-        e = slack / L[None]
-        for k, j in zip(*np.nonzero((t >= -e) & (t <= 1.0 + e)), strict=True):
-            out.append(((body, EDGE, int(k), int(j)), float(gap[k, j]), float(t[k, j])))
-        # hand vertex j on object edge k
-        rel = poly[:, None, :] - obj[None, :, :]  # (j, k, 2)
-        gap = (rel * obj_n[None]).sum(-1)
-        L = np.sqrt((obj_d * obj_d).sum(-1))
-        t = (rel * obj_d[None]).sum(-1) / (L * L)[None]
-        e = slack / L[None]
-        for j, k in zip(*np.nonzero((t >= -e) & (t <= 1.0 + e)), strict=True):
-            out.append(((body, TIP, int(k), int(j)), float(gap[j, k]), float(t[j, k])))
+        # object vertex k on hand edge j, then hand vertex j on object edge k
+        for kind, verts, edges, normals, dirs in (
+            (EDGE, obj, poly, n, d),
+            (TIP, poly, obj, obj_n, obj_d),
+        ):
+            rel = verts[:, None, :] - edges[None, :, :]  # (vertex, edge, 2)
+            gap = (rel * normals[None]).sum(-1)
+            near = np.abs(gap) <= max_gap
+            if not near.any():
+                continue
+            L = np.sqrt((dirs * dirs).sum(-1))
+            t = (rel * dirs[None]).sum(-1) / (L * L)[None]
+            e = slack / L[None]
+            for i, j in zip(*np.nonzero(near & (t >= -e) & (t <= 1.0 + e)), strict=True):
+                key = (body, kind, int(i), int(j)) if kind == EDGE else (body, kind, int(j), int(i))
+                out.append((key, float(gap[i, j]), float(t[i, j])))
     return out
 
 
@@ -253,7 +255,8 @@ def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[Contac
     keys: list[ContactKey] = []
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     cands = sorted(
-        candidate_gaps(pl, broad_phase(pl, margin), slack=tol), key=lambda c: c[0][1]
+        candidate_gaps(pl, broad_phase(pl, margin), slack=tol, max_gap=tol),
+        key=lambda c: c[0][1],
     )  # edges first
     for key, gap, _t in cands:
         if abs(gap) > tol or key in exclude or not _locally_valid(pl, key, tol):
