@@ -2,7 +2,8 @@
 
 Usage: ``python -m benchmarks [--quick] [--only NAME ...] [--out DIR]`` from the repository
 root (full suite about 10 minutes, ``--quick`` about one). Names: throughput,
-work_precision, profile, memory.
+work_precision, profile, memory, ppo (PPO training throughput, ``ppo_throughput.py``; left out
+of ``--quick`` unless named with ``--only``).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import argparse
 import time
 from pathlib import Path
 
-from benchmarks import memory, profile_step, throughput, work_precision
+from benchmarks import memory, ppo_throughput, profile_step, throughput, work_precision
 from benchmarks.common import RESULTS, headless
 
 SUITE = {
@@ -19,18 +20,21 @@ SUITE = {
     "work_precision": lambda quick, out: work_precision.run(quick, out / "work_precision.md"),
     "profile": lambda quick, out: profile_step.run(quick, out / "profile.md"),
     "memory": lambda quick, out: memory.run(quick, out / "memory.md"),
+    "ppo": lambda quick, out: ppo_throughput.run(quick, out / "ppo_throughput.md"),
 }
+QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small budgets (about one minute)")
-    ap.add_argument("--only", nargs="+", choices=list(SUITE), default=list(SUITE))
+    ap.add_argument("--only", nargs="+", choices=list(SUITE))
     ap.add_argument("--out", type=Path, default=RESULTS, help="results folder")
     args = ap.parse_args(argv)
     headless()
+    names = args.only or [n for n in SUITE if not (args.quick and n in QUICK_SKIP)]
     start = time.perf_counter()
-    for name in args.only:
+    for name in names:
         t0 = time.perf_counter()
         SUITE[name](args.quick, args.out)
         print(f"== {name}: {time.perf_counter() - t0:.0f} s")
