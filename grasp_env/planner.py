@@ -551,15 +551,17 @@ def adjust_grip(
     difference over ``eps`` in each direction), its size clipped to ``[eps, max_dq]`` and
     halved until ``y*`` falls below its value at the ``eps`` step (which is taken otherwise).
     At a five-contact configuration every four-contact branch that keeps form closure is
-    evaluated in both directions and the best one continues. Stops when no branch lowers
-    ``y*`` at a step of ``eps`` either way.
+    evaluated in both directions and the best one continues. The hand goes to the new
+    configuration by one simulated straight-line move (the plan then replays exactly), kept
+    if the grasp stays closed off the support and ``y*`` falls. Stops when no branch lowers
+    ``y*`` at a step of ``eps`` either way, or no such move keeps the grasp.
     """
     y = mech.grip_objective(state)
     z = np.array([*state.object_pose, state.hand[4]])
     q1 = float(state.hand[3])
     weight = sim.scene.object_weight
     for _ in range(max_steps):
-        best = None
+        candidates = []
         for br in _branches(sim, state):
             # the branch is usable only in directions where it stays valid and y* falls
             for sign in (1.0, -1.0):
@@ -575,15 +577,22 @@ def adjust_grip(
                         found = (y_new, q1 + step, z_new)
                         break
                     step *= 0.5
-                if best is None or found[0] < best[0]:
-                    best = (*found, br)
-        if best is None:
+                candidates.append((*found, br))
+        # The hand reaches the chosen configuration by one straight-line move (so that the
+        # plan replays through the simulator and the env); keep the move only if the grasp
+        # stays closed off the support and y* falls.
+        for _, q1_new, z_new, br in sorted(candidates, key=lambda c: c[0]):
+            target = br.config(q1_new, z_new)
+            moved = sim.move_hand(state, palm=target[:3], fingers=target[3:])
+            y_moved = mech.grip_objective(moved) if _grasped(moved) else math.inf
+            if y_moved < y:
+                break
+        else:
             plan.message = "form closure reached; y* at a local minimum"
             return state
-        y, q1, z, br = best
-        state = sim.settle(z[:3], br.config(q1, z))
-        plan.steps.append(PlanStep("grip adjustment", state, mech.grip_objective(state), ""))
-        y = plan.steps[-1].grip
+        state, y = moved, y_moved
+        z, q1 = np.array([*state.object_pose, state.hand[4]]), float(state.hand[3])
+        plan.steps.append(PlanStep("grip adjustment", state, y, _event_note(state)))
     plan.message = f"grip adjustment stopped after {max_steps} steps"
     return state
 

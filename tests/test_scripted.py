@@ -137,6 +137,8 @@ def test_scripted_policy_succeeds_on_fig13_through_the_env(palm_control, start):
         for s in TIPPABLE
     ],
 )
-def test_scripted_policy_succeeds_on_every_tippable_scene(scene):
-    info, _, _ = _run_policy(scene, False, "preliftoff")
+@pytest.mark.parametrize("start", ["preliftoff", "scene"])
+def test_scripted_policy_succeeds_on_every_tippable_scene(scene, start):
+    # offset_pentagon's scene start has the palm off-centre: the plan differs from pentagon's
+    info, _, _ = _run_policy(scene, False, start)
     assert info["is_success"]
