@@ -11,9 +11,9 @@ Cases:
   object poses after each move.
 
 Each case runs for each LP path (``lp_solver="fast"`` and ``"highs"``) over a grid of
-``contact_tol`` and ``max_step``; the reference is the HiGHS path at ``contact_tol=1e-12``
-and a small ``max_step``, cross-checked by the same at ``1e-11``. Times are medians of
-``repeat`` runs.
+``contact_tol`` and ``max_step``; the reference is the HiGHS path at ``contact_tol=1e-11``
+(the smallest the simulator takes) and a small ``max_step``, cross-checked by the same at
+``1e-10``. Times are medians of ``repeat`` runs.
 
 Usage: ``python -m benchmarks.work_precision [--quick]``
 """
@@ -35,7 +35,7 @@ from grasp_env.envs.shapes import hand_setup
 DQ = 0.01  #: finger increment of the closing motion (rad per move)
 SOLVERS = ("fast", "highs")
 TARGET_ERROR, TARGET_MS = 1e-9, 20.0  #: issue 7: fig13 closing to this error within this time
-REF_TOLS = (1e-12, 1e-11)  #: contact_tol of the reference and of its cross-check
+REF_TOLS = (1e-11, 1e-10)  #: contact_tol of the reference and of its cross-check
 RUN_LIMIT = 60.0  #: seconds after which one run is abandoned ("timeout")
 
 
@@ -175,7 +175,7 @@ def run(
         path_grid = [(1e-9, 1.0)]
         fig13_ref = path_ref = 0.25
     else:
-        fig13_grid = list(itertools.product((1e-5, 1e-7, 1e-9, 1e-11), (1.0, 0.25, 0.05)))
+        fig13_grid = list(itertools.product((1e-5, 1e-7, 1e-9), (1.0, 0.25, 0.05)))
         path_grid = list(itertools.product((1e-5, 1e-7, 1e-9), (1.0, 0.25)))
         fig13_ref, path_ref = 0.01, 0.05
     scenes = [s for s in grasp_env.bundled_scenes() if s != "fig13"]

@@ -49,7 +49,8 @@ class Simulator:
 
     Args:
         scene: a :class:`~grasp_env.scene.Scene`, bundled name, path or dict.
-        contact_tol: gap below which bodies touch, relative to the palm width (default 1e-9).
+        contact_tol: gap below which bodies touch, relative to the palm width (default 1e-9,
+            at least 1e-11).
             No returned state penetrates deeper; events are located to within it.
         max_step: largest increment of the path parameter ``s`` between consistency checks
             along a move, as a fraction of the move (default 0.25). Smaller steps cost time;
@@ -74,8 +75,10 @@ class Simulator:
         if lp_solver not in ("fast", "highs"):
             raise ValueError(f"lp_solver must be 'fast' or 'highs', got {lp_solver!r}")
         self.lp_solver = lp_solver
-        if not (isinstance(contact_tol, float | int) and 0 < contact_tol < 1e-2):
-            raise ValueError(f"contact_tol must be in (0, 1e-2), got {contact_tol!r}")
+        if not (isinstance(contact_tol, float | int) and 1e-11 <= contact_tol < 1e-2):
+            # Below 1e-11 palm widths the contacts' own rounding (located events, Newton's
+            # residual, flush edges) is no longer small against the tolerance.
+            raise ValueError(f"contact_tol must be in [1e-11, 1e-2), got {contact_tol!r}")
         if not (isinstance(max_step, float | int) and 0 < max_step <= 1):
             raise ValueError(f"max_step must be in (0, 1], got {max_step!r}")
         if not (isinstance(fall_step, float | int) and 0 < fall_step <= 1):
@@ -700,6 +703,10 @@ class Simulator:
             if self._held(pl, keys, ftol=1e-12 * self.weight):
                 events.append(Event("fall_end", s, tuple(keys)))
                 return q
+            q_rest = self._cradle(q, h, keys)
+            if q_rest is not None:
+                q = q_rest  # held exactly there: the next pass ends the fall
+                continue
             # At a vertex-vertex touch any one candidate's half-plane suffices locally; take
             # the choice (or all candidates at once, always admissible) whose step lowers the
             # potential energy most.
@@ -722,12 +729,31 @@ class Simulator:
                     best, best_event = q_new, at_event
             # A step that ends on an event (a new contact, an edge's end) changes the contacts
             # for the next step however short it is; otherwise a negligible drop means rest.
-            if best is None or best[1] > q[1] - (0.0 if best_event else 1e-9 * self.size):
+            if best is None or (
+                not (best_event and np.any(best != q)) and best[1] > q[1] - 1e-9 * self.size
+            ):
                 # no admissible descent lowers the object: it is held
                 events.append(Event("fall_end", s, tuple(keys)))
                 return q
             q = best
         raise SimulationError("fall did not come to rest")
+
+    def _cradle(self, q: np.ndarray, h: np.ndarray, keys: list) -> np.ndarray | None:
+        """The rest pose of a fall that has nearly come to rest on fewer than three contacts
+        (a cradle, where descent steps converge only linearly): their equilibrium pose by
+        Newton, if it lies within one fall step, no higher, with nothing violated, and the
+        contacts there hold the object; else None."""
+        if not 0 < len(keys) < 3:
+            return None
+        q_rest = self._newton_held(q, h, keys)
+        if q_rest is None or q_rest[1] > q[1] + self.tol:
+            return None
+        if np.abs((q_rest - q) / self._scale).max() > self.fall_step:
+            return None
+        if self._geometry_violation(q_rest, h, keys) > self.tol:
+            return None
+        pl = ct.Placement(self.scene, q_rest, h)
+        return q_rest if self._held(pl, ct.detect(pl, self.tol), 1e-12 * self.weight) else None
 
     def _descent(self, pl: ct.Placement, keys: list) -> tuple[np.ndarray, list]:
         """Steepest admissible descent (scaled twist) for contacts ``keys``, and the contacts it

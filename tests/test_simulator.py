@@ -925,7 +925,8 @@ def test_final_pose_converges_with_max_step(dq: float) -> None:
 
 
 def test_tighter_tolerance_agrees_at_lift_off() -> None:
-    """contact_tol 1e-11 (allowed: the option takes (0, 1e-2)) gives the same lift-off
+    """contact_tol 1e-11 (the smallest allowed: the option takes [1e-11, 1e-2)) gives the same
+    lift-off
     state as 1e-9: the hand reaches its target with the object on finger 1 (edge and tip)
     and finger 2. Regression: before commit df3bcc2 the 1e-11 run jammed at s = 0.9179 after
     finger 1's tip met object vertex 4 (a vertex-vertex touch) and a fall."""
@@ -933,6 +934,12 @@ def test_tighter_tolerance_agrees_at_lift_off() -> None:
     ref = closing_run(CLOSING["lift_off"], 1e-9)
     assert not tight.jammed
     np.testing.assert_allclose(tight.object_pose, ref.object_pose, atol=1e-9)
+
+
+@pytest.mark.parametrize("tol", [1e-12, 0.0, -1e-9, 0.01, float("nan"), "1e-9"])
+def test_contact_tol_out_of_range_refused(tol) -> None:
+    with pytest.raises(ValueError, match=r"contact_tol must be in \[1e-11, 1e-2\)"):
+        Simulator(scene_of("fig13"), contact_tol=tol)
 
 
 # ---------------------------------------------------------------------------------------
