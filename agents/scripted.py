@@ -194,11 +194,13 @@ def write_branch_plot(sim: Simulator, plan: planner.Plan, path: Path) -> list[di
         style = "-" if c["form_closure"] else ":"
         label += "" if c["form_closure"] else " (no form closure)"
         ax.plot(c["q1"], np.asarray(c["grip"]) / weight, style, label=label)
-    adj = [(st.state.hand[3], st.grip / weight) for st in plan.steps if st.phase != "lifting"]
-    adj = [p for p in adj if math.isfinite(p[1])]
-    if adj:
-        q, y = zip(*adj, strict=True)
-        ax.plot(q, y, "ks", markerfacecolor="none", label="grip-adjustment steps")
+    fc = plan.form_closure_step()
+    steps = [(i, st.state.hand[3], st.grip / weight) for i, st in enumerate(plan.steps)][fc:]
+    if steps:
+        _, q, y = zip(*steps, strict=True)
+        ax.plot(q, y, "ks", markerfacecolor="none", label="form closure and grip adjustment")
+        for (i, qi, yi), offset in ((steps[0], (4, 8)), (steps[-1], (-20, -16))):
+            ax.annotate(f"step {i}", (qi, yi), textcoords="offset points", xytext=offset)
     ax.axvline(final.hand[3], color="0.6", lw=0.8)
     ax.set_xlabel("finger 1 angle q1 (rad)")
     ax.set_ylabel("grip objective y* / object weight")
