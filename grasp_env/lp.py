@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 
 from grasp_env.errors import SolverError
 
@@ -41,6 +40,8 @@ def solve(
     bounds: object = (None, None),
 ) -> LPResult:
     """Solve a small LP with HiGHS; raise :class:`SolverError` on any status but the three above."""
+    from scipy.optimize import linprog  # on first use: scipy.optimize is slow to import
+
     if A_ub is not None and len(A_ub) == 0:
         A_ub = b_ub = None
     if A_eq is not None and len(A_eq) == 0:

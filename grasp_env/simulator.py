@@ -27,7 +27,6 @@ import copy
 import itertools
 
 import numpy as np
-from scipy.optimize import nnls
 
 from grasp_env import contacts as ct
 from grasp_env import geometry as geo
@@ -563,7 +562,7 @@ class Simulator:
                 i = int(np.argmin(lam))
                 out[("lost_contact", E[i])] = -lam[i] * scale
             else:
-                lam, res = nnls(W, g)
+                lam, res = _nnls(W, g)
             out[("equilibrium", None)] = res * scale - self.tol
         return out
 
@@ -686,7 +685,7 @@ class Simulator:
         g = mech.gravity_wrench(self.scene)
         for choice in _choices(pl, keys, self.tol):
             p, n, _ = _arrays(pl, choice)
-            _, res = nnls(mech.V_ob(p, n, pl.com_W).T, g)
+            _, res = _nnls(mech.V_ob(p, n, pl.com_W).T, g)
             if res > ftol:
                 return False
         return True
@@ -852,7 +851,7 @@ class Simulator:
         res = mech.motion_lp(V, -np.ones(len(keys)), self.weight, self.lp_solver)
         if res.status != "optimal":
             # held only to within the fall's tolerance: the closest non-negative forces
-            lam, _ = nnls(V.T, g)
+            lam, _ = _nnls(V.T, g)
             return lam
         return np.maximum(res.forces, 0.0)
 
@@ -879,6 +878,14 @@ def _independent_forces(W: np.ndarray, g: np.ndarray) -> np.ndarray | None:
     if np.linalg.matrix_rank(W, tol=1e-10) < W.shape[1]:
         return None
     return np.linalg.lstsq(W, g, rcond=None)[0]
+
+
+def _nnls(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, float]:
+    """``scipy.optimize.nnls``, imported on first use (scipy.optimize costs a second to
+    import; ``import grasp_env`` should not)."""
+    from scipy.optimize import nnls
+
+    return nnls(W, g)
 
 
 def _arrays(pl: ct.Placement, keys: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
