@@ -95,6 +95,7 @@ class Simulator:
         # Newton stops well inside the tolerance, but not below what doubles can resolve
         self.newton_tol = max(1e-3 * self.tol, 64 * np.finfo(float).eps * L)
         self._scale = np.array([1.0, 1.0, 1.0 / self.rho])  # twist -> scaled twist rows
+        self._placements: dict[tuple[bytes, bytes], ct.Placement] = {}
         # Sweep bounds: how far any hand vertex lies from its body's frame origin (palm,
         # joints), and the thinnest of the bodies, which a step may not jump across.
         polys = kin.hand_polygons_local(self.scene)
@@ -104,6 +105,18 @@ class Simulator:
             self.scene.palm.thickness,
             *(f.thickness for f in self.scene.fingers),
         )
+
+    def _place(self, q: np.ndarray, h: np.ndarray) -> ct.Placement:
+        """The world geometry at ``(q, h)``, memoised over the last few configurations: the
+        plan, the step's checks, the determinacy test and the output of one increment
+        look at the same ones."""
+        key = (q.tobytes(), h.tobytes())
+        pl = self._placements.get(key)
+        if pl is None:
+            if len(self._placements) >= 8:
+                del self._placements[next(iter(self._placements))]
+            pl = self._placements[key] = ct.Placement(self.scene, q.copy(), h.copy())
+        return pl
 
     # ------------------------------------------------------------------ public API
     def reset(self) -> State:
@@ -242,7 +255,7 @@ class Simulator:
             elif overridden:
                 plan, override = override, None
             else:
-                pl = ct.Placement(self.scene, q, h)
+                pl = self._place(q, h)
                 if touching is not None:
                     keys, touching = touching, None
                 else:
@@ -319,7 +332,7 @@ class Simulator:
                         # the least-norm velocity) closes at once: the object held by the
                         # others is pushed into it, so it joins the active set. The plan's
                         # velocity keeps every touching contact closed (V v >= xi).
-                        pl = ct.Placement(self.scene, q, h0 + s * dh)
+                        pl = self._place(q, h0 + s * dh)
                         if key in ct.detect(pl, self.tol):
                             forced.add(key)
                             override = ([*E, key], v)
@@ -410,7 +423,7 @@ class Simulator:
         object: its separating distance plus the thinnest body's width, over a bound on how
         fast its vertices approach the object's (conservative advancement). Only the step's
         end is checked for penetration, so this keeps thin fingers from tunnelling."""
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         bodies = [b for b in ct.broad_phase(pl, np.inf) if b != geo.SUPPORT]
         touching = {k[0] for k in E}
         seps = ct.separations(pl, [b for b in bodies if b not in touching])
@@ -451,7 +464,10 @@ class Simulator:
                 return q
             last = res
             J = mech.V_ob(P, N, q[:2]) * self._scale
-            du, *_ = np.linalg.lstsq(J, -F, rcond=1e-12)
+            if len(E) == 3 and abs(np.linalg.det(J)) > 1e-8:
+                du = np.linalg.solve(J, -F)  # square and well conditioned: no SVD needed
+            else:
+                du, *_ = np.linalg.lstsq(J, -F, rcond=1e-12)
             if np.abs(du).max() > self.size:
                 return None  # a near-singular step far outside Newton's basin
             q = q + du * self._scale
@@ -490,7 +506,9 @@ class Simulator:
             r = P - q[:2]
             W = mech.V_ob(P, N, q[:2]).T  # (3, m) wrench columns
             if lam is None:
-                lam, *_ = np.linalg.lstsq(W, g, rcond=None)
+                lam = _independent_forces(W, g)
+                if lam is None:
+                    lam, *_ = np.linalg.lstsq(W, g, rcond=None)
             eq = (W @ lam - g) * rows
             if np.abs(F).max() <= self.newton_tol and np.abs(eq).max() <= 1e-12:
                 return q
@@ -516,7 +534,7 @@ class Simulator:
 
     def _gaps(self, q: np.ndarray, h: np.ndarray, E: list):
         """Points, normals and gaps of the contacts ``E`` at ``(q, h)``."""
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         F = np.empty(len(E))
         P = np.empty((len(E), 2))
         N = np.empty((len(E), 2))
@@ -535,7 +553,7 @@ class Simulator:
         active force, scaled by size / weight) and ``"equilibrium"`` (the residual of the
         object's equilibrium with ``E``'s forces, which only flags violations).
         """
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         exclude = {ct.vertex_of(k) for k in E}
         near = ct.broad_phase(pl, 0.05 * self.size + self.tol)
         gap, key = ct.min_gap(pl, exclude, near)
@@ -629,7 +647,7 @@ class Simulator:
             return True  # resting on the support: only a new contact changes that
         if len(E) != 3:
             return False
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         P, N, _ = _arrays(pl, E)
         W = mech.V_ob(P, N, q[:2]).T
         if abs(np.linalg.det(W * self._scale[:, None])) < 1e-8:
@@ -646,7 +664,7 @@ class Simulator:
             q_new = self._newton(q + v * ds, h, E)
             if q_new is None or self._geometry_violation(q_new, h, E) > self.tol:
                 return None
-            pl = ct.Placement(self.scene, q_new, h)
+            pl = self._place(q_new, h)
             if not self._held(pl, ct.detect(pl, self.tol)):
                 return s + ds, q_new
             ds *= 4.0
@@ -656,7 +674,7 @@ class Simulator:
     def _fall_if_needed(
         self, q: np.ndarray, h: np.ndarray, s: float, events: list[Event]
     ) -> np.ndarray:
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         keys = ct.detect(pl, self.tol)
         if self._held(pl, keys):
             return q
@@ -665,7 +683,7 @@ class Simulator:
     def _fall_if_unheld(self, q, h, s, events) -> np.ndarray | None:
         """Fall to rest when the touching contacts cannot hold the object; the new pose, or
         None when they hold it (or no way down exists)."""
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         if self._held(pl, ct.detect(pl, self.tol)):
             return None
         q_fallen = self._fall(q, h, s, events)
@@ -695,7 +713,7 @@ class Simulator:
         (gravity projected on the admissible cone, mass metric) until contacts hold the object."""
         events.append(Event("fall_start", s))
         for _ in range(self.max_iterations):
-            pl = ct.Placement(self.scene, q, h)
+            pl = self._place(q, h)
             keys = ct.detect(pl, self.tol)
             # Held only to rounding: near the boundary of equilibrium a residual within the
             # usual tolerance still leaves a way down, which the descent below finds.
@@ -751,7 +769,7 @@ class Simulator:
             return None
         if self._geometry_violation(q_rest, h, keys) > self.tol:
             return None
-        pl = ct.Placement(self.scene, q_rest, h)
+        pl = self._place(q_rest, h)
         return q_rest if self._held(pl, ct.detect(pl, self.tol), 1e-12 * self.weight) else None
 
     def _descent(self, pl: ct.Placement, keys: list) -> tuple[np.ndarray, list]:
@@ -800,7 +818,7 @@ class Simulator:
         return q_lo, True
 
     def _geometry_violation(self, q, h, E) -> float:
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         gap, _ = ct.min_gap(pl, {ct.vertex_of(k) for k in E})
         worst = max(-gap, ct.max_overlap(pl, (1, 2, 3))[0])
         for k in E:
@@ -811,7 +829,7 @@ class Simulator:
 
     # ------------------------------------------------------------------ output
     def _make_state(self, q, h, events, jammed=False, blocked=False) -> State:
-        pl = ct.Placement(self.scene, q, h)
+        pl = self._place(q, h)
         keys = ct.detect(pl, self.tol)
         forces = self._rest_forces(pl, keys)
         contacts = []
@@ -867,15 +885,24 @@ def _event(trigger: tuple, s: float) -> Event:
 
 def _independent_forces(W: np.ndarray, g: np.ndarray) -> np.ndarray | None:
     """Least-squares forces ``lam`` with ``W lam ~ g`` for up to three contact wrenches (the
-    columns of ``W``), or None when the wrenches are dependent. Three wrenches (the common
-    case, run in every consistency check) are solved directly after a unit-column volume
-    test (> 1e-10), without the SVD that the rank test of fewer columns needs."""
-    if W.shape[1] == 3:
-        norms = np.sqrt((W * W).sum(axis=0))
-        if norms.min() == 0.0 or abs(np.linalg.det(W / norms)) <= 1e-10:
+    columns of ``W``), or None when the wrenches are dependent. This runs in every
+    consistency check, so well-conditioned cases use closed forms: three wrenches a direct
+    solve after a unit-column volume test (> 1e-10), fewer the normal equations when the
+    unit-column Gram determinant exceeds 1e-6 (squaring the condition number is harmless
+    there); the rest goes through the SVD."""
+    m = W.shape[1]
+    norms = np.sqrt((W * W).sum(axis=0))
+    if norms.min() == 0.0:
+        return None
+    U = W / norms
+    if m == 3:
+        if abs(np.linalg.det(U)) <= 1e-10:
             return None
         return np.linalg.solve(W, g)
-    if np.linalg.matrix_rank(W, tol=1e-10) < W.shape[1]:
+    G = U.T @ U
+    if np.linalg.det(G) > 1e-6:
+        return np.linalg.solve(G, U.T @ g) / norms
+    if np.linalg.matrix_rank(W, tol=1e-10) < m:
         return None
     return np.linalg.lstsq(W, g, rcond=None)[0]
 

@@ -1303,3 +1303,29 @@ def test_failed_retry_raises_simulation_error(monkeypatch: pytest.MonkeyPatch) -
     monkeypatch.setattr(mechanics, "motion_lp", broken)
     with pytest.raises(grasp_env.SimulationError, match=r"fast path down.*highs path down"):
         sim.move_hand(start, fingers=(-HALF_PI + 0.45, -HALF_PI - 0.45))
+
+
+def test_independent_forces_match_lstsq() -> None:
+    """The closed-form contact forces of up to three wrenches agree with numpy's SVD-based
+    least squares (the reference), on random and nearly dependent wrench sets, and refuse
+    dependent ones."""
+    from grasp_env.simulator import _independent_forces
+
+    rng = np.random.default_rng(7)
+    for m in (1, 2, 3):
+        for k in range(500):
+            W = rng.normal(size=(3, m)) * rng.uniform(0.01, 100.0)
+            if k % 5 == 0 and m > 1:  # nearly parallel columns
+                W[:, 1] = W[:, 0] + 1e-4 * rng.normal(size=3)
+            g = rng.normal(size=3)
+            lam = _independent_forces(W, g)
+            ref = np.linalg.lstsq(W, g, rcond=None)[0]
+            assert lam is not None
+            # as good a least-squares fit, up to rounding of the size of the forces
+            slack = 1e-10 * np.linalg.norm(W) * (1.0 + np.abs(ref).max())
+            assert np.linalg.norm(W @ lam - g) <= np.linalg.norm(W @ ref - g) + slack
+            if m < 3 or abs(np.linalg.det(W / np.linalg.norm(W, axis=0))) > 1e-3:
+                np.testing.assert_allclose(lam, ref, rtol=1e-8, atol=1e-10)
+    W = np.array([[1.0, 2.0, 0.0], [0.0, 0.0, 1.0], [1.0, 2.0, 0.0]]).T  # columns 0, 2 equal
+    assert _independent_forces(W, np.ones(3)) is None
+    assert _independent_forces(np.zeros((3, 2)), np.ones(3)) is None
