@@ -288,7 +288,7 @@ class Simulator:
             E, v = plan
             if s >= s_end - 1e-15:
                 return q, s_end, False
-            rest = min(s_end - s, self._sweep_limit(q, h, dh, v, E))
+            rest = self._sweep_limit(q, h, dh, v, E, s_end - s)
             ds = min(self.max_step, rest)
             tried = False
             if ds < rest and (determined or self._determined(q, h, E)):
@@ -400,6 +400,12 @@ class Simulator:
         p, n, bodies = _arrays(pl, keys)
         V = mech.V_ob(p, n, pl.com_W)
         xi = mech.xi(self.scene, h, dh, bodies, p, n)
+        if not np.any(xi):
+            # The hand moves no contact (the object on the support, the fingers in free
+            # space): v = 0 is optimal, with every contact tight, whenever the contacts hold
+            # the object exactly; only the borderline cases need the LP.
+            if _nnls(V.T, mech.gravity_wrench(self.scene))[1] <= 1e-12 * self.weight:
+                return 0.0, list(keys), np.zeros(3)
         res = mech.motion_lp(V, xi, self.weight, self.lp_solver)
         if res.status == "infeasible":
             return "jam"
@@ -418,17 +424,12 @@ class Simulator:
         E = [k for k, t in zip(keys, tight, strict=True) if t]
         return res.value, E, v
 
-    def _sweep_limit(self, q: np.ndarray, h: np.ndarray, dh: np.ndarray, v: np.ndarray, E) -> float:
-        """Largest ``ds`` after which no hand body out of contact can have passed through the
-        object: its separating distance plus the thinnest body's width, over a bound on how
-        fast its vertices approach the object's (conservative advancement). Only the step's
-        end is checked for penetration, so this keeps thin fingers from tunnelling."""
-        pl = self._place(q, h)
-        bodies = [b for b in ct.broad_phase(pl, np.inf) if b != geo.SUPPORT]
-        touching = {k[0] for k in E}
-        seps = ct.separations(pl, [b for b in bodies if b not in touching])
-        if not seps:
-            return np.inf
+    def _sweep_limit(self, q, h, dh, v, E, rest: float) -> float:
+        """Largest ``ds`` (up to ``rest``) after which no hand body out of contact can have
+        passed through the object: its separating distance plus the thinnest body's width,
+        over a bound on how fast its vertices approach the object's (conservative
+        advancement). Only the step's end is checked for penetration, so this keeps thin
+        fingers from tunnelling; short moves (most env steps) need no distances at all."""
         half = 0.5 * self.scene.palm.width
         turn = abs(dh[2])
         base = float(np.hypot(dh[0], dh[1])) + turn * half  # palm origin / joints
@@ -439,7 +440,11 @@ class Simulator:
         }
         # the object moves too: twice its predicted speed, for the path's curvature
         obj = 2.0 * (float(np.hypot(v[0], v[1])) + abs(v[2]) * self.size)
-        limit = np.inf
+        if (max(speed.values()) + obj) * rest <= self._thinnest:
+            return rest
+        touching = {k[0] for k in E}
+        seps = ct.separations(self._place(q, h), [b for b in speed if b not in touching])
+        limit = rest
         for b, d in seps.items():
             rate = speed[b] + obj
             if rate > 0.0:
