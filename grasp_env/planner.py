@@ -53,6 +53,10 @@ PALM_CLEARANCE = 0.01
 #: Finger step of the pre-liftoff closing motion (rad); the first touch is then located
 #: exactly from the simulator's events, so the step only changes the cost.
 PRELIFTOFF_STEP = 0.1
+#: Palm angles (rad) of the tipping placements, in the order lifting tries them: the paper's
+#: palm parallel to the support first, then tilted ever more (a tilted palm reaches further
+#: under objects with parallel or undercut sides).
+PALM_ANGLES = (0.0, -0.2, 0.2, -0.4, 0.4, -0.6, 0.6)
 #: Lifting alternatives to the equal-rate squeeze, as multiples of the finger step
 #: ``(dq1, dq2)`` (finger 1 closes as q1 grows, finger 2 as q2 falls).
 ALTERNATIVES = (
@@ -172,7 +176,7 @@ def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray, tol: floa
 
 
 def tipping_placement(
-    sim: Simulator, palm_angles=(0.0,), n_q: int = 24
+    sim: Simulator, palm_angles=(0.0,), n_q: int = 24, sides=("right", "left")
 ) -> tuple[State, str] | None:
     """Pre-liftoff search for the paper's Fig. 4 placement.
 
@@ -182,7 +186,8 @@ def tipping_placement(
     it touches, and the placement is kept if that contact lies in the region, the hand is
     clear of the support and the object, and the joints are within limits. Among the valid
     placements the one whose contact has the largest moment arm about the support contact
-    (the easiest to tip) is returned, with the side; None if there is none.
+    (the easiest to tip) is returned, with the side; None if there is none. ``sides``
+    restricts the search to some regions.
     """
     scene = sim.scene
     q_obj = scene.object.start_pose.copy()
@@ -190,7 +195,7 @@ def tipping_placement(
     tol = sim.tol
     best = None
     for side, region in (("right", right), ("left", left)):
-        if region.is_empty:
+        if region.is_empty or side not in sides:
             continue
         hold = 2 if side == "right" else 1  # finger whose tip sits on the support contact
         move = 3 - hold
@@ -649,6 +654,19 @@ def plan_grasp(scene, sim: Simulator | None = None, dq: float = 0.02, adjust: bo
     return plan
 
 
+def _placements(sim: Simulator, centred: State):
+    """Pre-liftoff placements in the order lifting tries them: the tipping placements (Fig. 4)
+    with the palm parallel to the support, the centred one (the paper's fallback) if squeezing
+    tips the object, then tipping placements with the palm tilted by ``PALM_ANGLES``."""
+    for th in PALM_ANGLES:
+        for side in ("right", "left"):
+            found = tipping_placement(sim, palm_angles=(th,), sides=(side,))
+            if found is not None:
+                yield found[0], f"tippability ({side} region, palm angle {th:+.1f})"
+        if th == 0.0 and squeeze_tips(sim, centred)[0]:
+            yield centred, "centred"
+
+
 def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool) -> None:
     left, right = tippability_regions(sim.scene)
     if left.is_empty and right.is_empty:
@@ -657,26 +675,22 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool) -> None:
             "both tippability regions are empty: the object cannot be lifted without friction"
         )
         return
-    placements = []
-    found = tipping_placement(sim)
-    if found is not None:
-        placements.append((found[0], f"tippability ({found[1]} region)"))
     centred = centred_placement(sim)
-    if squeeze_tips(sim, centred)[0]:
-        placements.append((centred, "centred"))
-    if not placements:
-        plan.steps.append(PlanStep("pre-liftoff", centred, math.nan, "not tippable"))
-        plan.status = "not_tippable"
-        plan.message = "no tipping placement: squeezing the centred hand does not move the object"
-        return
+    tries = 0
     failed = []
-    for state, placement in placements:  # re-place the hand if lifting from one gets stuck
+    for state, placement in _placements(sim, centred):  # re-place the hand when stuck
+        tries += 1
         plan.steps = [PlanStep("pre-liftoff", state, _grip_if_closed(state), placement)]
         plan.placement = placement
         state = lift(sim, state, plan, dq)
         if plan.success:
             break
         failed.append(f"from the {placement} placement: {plan.message}")
+    if tries == 0:
+        plan.steps = [PlanStep("pre-liftoff", centred, math.nan, "not tippable")]
+        plan.status = "not_tippable"
+        plan.message = "no tipping placement: squeezing the centred hand does not move the object"
+        return
     if not plan.success:
         plan.message = "; ".join(failed)
         return
