@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -48,6 +49,15 @@ class State:
     jammed: bool = False
     hand_blocked: bool = False
     events: tuple[Event, ...] = field(default=())
+
+    @cached_property
+    def form_closure(self) -> bool:
+        """Whether the contacts leave the object no motion at all (computed on first use). A
+        jam is not always form closure: a square wedged between two fingertips jams without
+        it."""
+        from grasp_env.mechanics import is_form_closure
+
+        return is_form_closure(self)
 
     @property
     def palm_pose(self) -> np.ndarray:
