@@ -21,6 +21,8 @@ from agents.scripted import EXIT_NOT_TIPPABLE, ScriptedPolicy, main
 
 ROOT = Path(__file__).resolve().parents[1]
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
+#: Scenes the policy cannot lift from the env's start: the plan needs a tilted-palm placement
+#: (square, heavy_square, triangle) or the planner gets stuck (tall_rectangle).
 KNOWN_STUCK = {"square", "heavy_square", "tall_rectangle", "triangle"}
 
 
@@ -129,7 +131,7 @@ def test_scripted_policy_succeeds_on_fig13_through_the_env(palm_control, start):
     [
         pytest.param(
             s,
-            marks=[pytest.mark.xfail(strict=True, reason="planner stuck")]
+            marks=[pytest.mark.xfail(strict=True, reason="no plan from the env start")]
             if s in KNOWN_STUCK
             else [],
             id=s,
