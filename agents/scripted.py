@@ -54,6 +54,8 @@ BRANCH_HALF_WIDTH = 0.15
 #: Object pose deviation (relative to the object's size) from the plan that makes the
 #: policy re-plan from the env's state.
 REPLAN_TOL = 1e-4
+#: Re-plans allowed per episode (a plan that gets stuck is replayed as it is).
+MAX_REPLANS = 3
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_TIPPABLE = 0, 1, 2, 3
 
@@ -297,7 +299,8 @@ class ScriptedPolicy:
     lifting and grip-adjustment phases, all with the palm fixed where the env put it. It then
     replays the planned hand configurations as scaled actions, splitting an increment larger
     than one action (``max_finger_step``) over several steps, and re-plans from the env's
-    state whenever the object is not where the plan expects it. Once the plan is done it
+    state (at most ``MAX_REPLANS`` times an episode) whenever the object is not where the
+    plan expects it. Once the plan is done it
     holds still (zero actions).
 
     Works with ``palm_control`` False or True (the palm actions stay zero) from the
@@ -316,9 +319,11 @@ class ScriptedPolicy:
         self._waypoints: list[tuple[np.ndarray, np.ndarray]] = []  # (hand, object pose)
         self._chunk: list[np.ndarray] = []  # actions left to reach the current waypoint
         self._expected: np.ndarray | None = None  # object pose planned at that waypoint
+        self._replans = 0
 
     def reset(self, obs=None, info=None) -> None:
         """Plan from the env's current state (call after every ``env.reset``)."""
+        self._replans = 0
         self._replan()
 
     def _replan(self) -> None:
@@ -344,7 +349,8 @@ class ScriptedPolicy:
             if self._expected is not None:
                 off = np.abs(state.object_pose - self._expected).max()
                 self._expected = None
-                if off > REPLAN_TOL * base._sim.size:
+                if off > REPLAN_TOL * base._sim.size and self._replans < MAX_REPLANS:
+                    self._replans += 1
                     self._replan()
             if self._waypoints:
                 hand, self._expected = self._waypoints.pop(0)
