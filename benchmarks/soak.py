@@ -581,6 +581,24 @@ def summarise(records: list[dict]) -> dict[str, Any]:
     return out
 
 
+def _revision() -> str:
+    """The repository's commit, with ``+dirty`` when tracked files have uncommitted changes."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    try:
+        rev = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root, capture_output=True, text=True,
+        ).stdout.strip()  # fmt: skip
+    except OSError:
+        return "unknown"
+    return (rev or "unknown") + ("+dirty" if dirty else "")
+
+
 def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, records: list) -> None:
     rate = s["steps"] / s["cpu_time"] if s["cpu_time"] else math.nan
     kinds = ", ".join(f"{k} {v}" for k, v in s["kinds"].items())
@@ -590,7 +608,8 @@ def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, rec
         f"Command: `python benchmarks/soak.py --steps {args.steps} --shapes {args.shapes} "
         f"--workers {args.workers} --seed {args.seed}`  ",
         f"Machine: {platform.machine()}, Python {platform.python_version()}, "
-        f"{os.cpu_count()} CPUs; date {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}",
+        f"{os.cpu_count()} CPUs; date {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; "
+        f"code {_revision()}",
         "",
         "| figure | value |",
         "| --- | --- |",

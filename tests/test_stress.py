@@ -293,6 +293,42 @@ def test_regression_object_tunnels_through_finger() -> None:
     )
 
 
+#: Found by the soak (``benchmarks/soak.py --seed 1``, shape 73; float32 actions).
+UNHELD_POLYGON = [
+    [-0.11356077806569354, 0.0],
+    [0.09817862422186094, 0.0],
+    [0.2042838966776319, 0.15247410462346028],
+    [0.14005177079693304, 0.2928925882862563],
+    [-0.021817673571276425, 0.3349400329790819],
+    [-0.14869586031436588, 0.2747024760118263],
+    [-0.1918786923183537, 0.08414571862657899],
+]
+UNHELD_ACTIONS = [
+    [0.97969913, 0.6239696, -0.7702199, -0.39086124, 0.017521447],
+    [0.3094846, 0.8999102, 0.8102551, -0.630868, 0.44774312],
+    [0.8704793, -0.38021335, -0.28323987, -0.604663, 0.032114275],
+    [0.24934125, 0.2862759, 0.7109435, -0.4603995, -0.18031769],
+    [-0.30935282, -0.082278006, -0.32451516, -0.53253955, 0.5482619],
+    [0.8250018, 0.41561976, 0.5929065, -0.44801414, 0.73432],
+    [0.17453614, -0.16902214, -0.6394048, 0.895221, 0.94063205],
+    [0.93011147, 0.017041558, 0.77973855, -0.89612865, 0.1306767],
+    [0.38718632, -0.1534974, 0.82674503, 0.1218794, 0.11935905],
+    [0.7301354, -0.3964292, -0.5465409, 0.07031785, -0.46834213],
+    [0.9311462, 0.9250002, 0.47324634, 0.10331665, -0.7182035],
+]
+
+
+def test_regression_jam_after_lost_contact_is_held() -> None:
+    """A heptagon of mass 0.036 in the fig13 hand, ``"random"`` start (reset seed 83305122),
+    11 palm-control actions. At step 11 a contact is lost, a fall starts and ends at once, and
+    the simulator reports a jam whose two finger contacts cannot hold the object (equilibrium
+    residual 1.8e-6 x weight, an admissible descent of the same size; with the simulator of
+    commit bb97343 plus the working tree of 01:50 UTC). Reproducer:
+    /tmp/sim_bugs/soak_unheld_state.py 73."""
+    scene = grasp_env.load_scene(soak.stress_scene(np.array(UNHELD_POLYGON), 0.03590536183244385))
+    run_env(scene, "random", UNHELD_ACTIONS, seed=83305122)
+
+
 # ---------------------------------------------------------------------------------------
 # Failures inside the solver (issue 8, item 6)
 # ---------------------------------------------------------------------------------------
@@ -335,8 +371,14 @@ def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch
     from grasp_env.errors import SolverError
 
     env = FrictionlessGraspEnv("fig13", palm_control=True)
-    obs0, info0 = env.reset(seed=0)
-    good = np.array([1.0, 1.0, 0.0, -1.0, 0.0], dtype=np.float32)  # close and lower the palm
+    first, _ = env.reset(seed=0)
+    good = np.array([1.0, 1.0, 0.0, 0.0, 0.0], dtype=np.float32)  # close both fingers
+    obs0, info0 = first, {}
+    for _ in range(40):  # close until a finger touches: the next closing step needs the LP
+        obs0, _, _, _, info0 = env.step(good)
+        if any(c["body"].startswith("finger") for c in info0["contacts"]):
+            break
+    assert any(c["body"].startswith("finger") for c in info0["contacts"])
 
     def fail(*args, **kwargs):
         raise SolverError("injected failure", "numerical")
@@ -350,7 +392,7 @@ def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch
     np.testing.assert_array_equal(info["object_pose"], info0["object_pose"])
     assert math.isfinite(reward)
     obs, info = env.reset(seed=0)
-    np.testing.assert_array_equal(obs, obs0)
+    np.testing.assert_array_equal(obs, first)
     obs, reward, term, _, info = env.step(good)
     assert "sim_error" not in info and not term
     assert_valid(
