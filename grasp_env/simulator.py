@@ -163,16 +163,13 @@ class Simulator:
                 events.append(Event("joint_limit", 1.0))
             h1[3:] = clipped
         s_end, blocked = self._support_limit(h0, h1)
-        if blocked:
-            events.append(Event("hand_blocked", s_end))
         touching = [c.key for c in state.contacts]  # detected at (q, h0) by _make_state
         start = events.copy()
         try:
             q, s_reached, jammed = self._advance(
                 state.object_pose.copy(), h0, h1, s_end, events, touching
             )
-            h = h0 + s_reached * (h1 - h0)
-            return self._make_state(q, h, events, jammed=jammed, blocked=blocked)
+            return self._finish(q, h0, h1, s_reached, s_end, events, jammed, blocked)
         except (SimulationError, SolverError) as first:
             # A failed solve: once more on the reference LP path with smaller increments
             # (nothing of the failed attempt is kept); a second failure is reported.
@@ -181,13 +178,22 @@ class Simulator:
                 q, s_reached, jammed = careful._advance(
                     state.object_pose.copy(), h0, h1, s_end, events, None
                 )
-                h = h0 + s_reached * (h1 - h0)
-                return careful._make_state(q, h, events, jammed=jammed, blocked=blocked)
+                return careful._finish(q, h0, h1, s_reached, s_end, events, jammed, blocked)
             except (SimulationError, SolverError) as second:
                 raise SimulationError(
                     f"move failed ({first}) and again on the reference path with smaller "
                     f"increments ({second})"
                 ) from second
+
+    def _finish(self, q, h0, h1, s_reached, s_end, events, jammed, blocked) -> State:
+        """The state at the end of a move: the hand is blocked by the support only if it got
+        there (a jam may stop it first)."""
+        if blocked and not (jammed and s_reached < s_end):
+            events.append(Event("hand_blocked", s_end))
+        else:
+            blocked = False
+        h = h0 + s_reached * (h1 - h0)
+        return self._make_state(q, h, events, jammed=jammed, blocked=blocked)
 
     def _careful(self) -> Simulator:
         """A copy of this simulator on the reference LP path (HiGHS) with a quarter of the
