@@ -18,6 +18,7 @@ import functools
 import itertools
 import math
 import os
+import sys
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -359,10 +360,10 @@ def evaluate(
     ]
     if workers > 1:
         with ProcessPoolExecutor(workers, initializer=_one_thread) as pool:
-            results = list(pool.map(_run_job, jobs, chunksize=1))
+            results = _progress(pool.map(_run_job, jobs, chunksize=1), len(jobs))
     else:
         _one_thread()
-        results = [_run_job(job) for job in jobs]
+        results = _progress(map(_run_job, jobs), len(jobs))
     write_csv(out / "episodes.csv", [asdict(e) for e in results])
     rows = summarize(results)
     write_csv(out / "summary.csv", rows)
@@ -374,6 +375,16 @@ def evaluate(
         run_episode(spec, "bundled", GIF_SCENE, 0, max_steps, frames)
         write_gif(out / f"{spec.name}.gif", frames, FrictionlessGraspEnv.metadata["render_fps"])
     return rows
+
+
+def _progress(episodes, total: int) -> list[Episode]:
+    """Collect the episodes, printing one line per episode to stderr."""
+    out = []
+    for i, e in enumerate(episodes, 1):
+        status = "success" if e.success else ("error" if e.error else "no grasp")
+        print(f"[{i}/{total}] {e.policy} {e.scene}: {status}", file=sys.stderr, flush=True)
+        out.append(e)
+    return out
 
 
 def _one_thread() -> None:
