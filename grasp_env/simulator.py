@@ -38,6 +38,9 @@ from grasp_env.scene import Scene, load_scene
 from grasp_env.state import Event, State
 from grasp_env.width import object_width
 
+#: Largest contact force, in object weights, that counts as holding the object.
+MAX_FORCE = 1e6
+
 
 class SimulationError(RuntimeError):
     """The simulator could not continue (a solve failed even on the fallbacks)."""
@@ -707,15 +710,17 @@ class Simulator:
         """True when the touching contacts ``keys`` hold the object against gravity (to the
         force tolerance ``ftol``, default the simulator's). At a vertex-vertex touch the
         object may move along either candidate's edge (a union of half-planes): it is held
-        only if every choice of candidates holds it."""
+        only if every choice of candidates holds it. Forces beyond :data:`MAX_FORCE` object
+        weights do not count: a wedge between faces parallel to rounding would need them, and
+        in double precision they no longer balance (the object slides out instead)."""
         ftol = self.ftol if ftol is None else ftol
         if not keys:
             return False
         g = mech.gravity_wrench(self.scene)
         for choice in _choices(pl, keys, self.tol):
             p, n, _ = _arrays(pl, choice)
-            _, res = _nnls(mech.V_ob(p, n, pl.com_W).T, g)
-            if res > ftol:
+            lam, res = _nnls(mech.V_ob(p, n, pl.com_W).T, g)
+            if res > ftol or lam.max() > MAX_FORCE * self.weight:
                 return False
         return True
 
