@@ -329,14 +329,16 @@ def test_regression_jam_after_lost_contact_is_held() -> None:
     run_env(scene, "random", UNHELD_ACTIONS, seed=83305122)
 
 
+@pytest.mark.slow
 def test_regression_soak_seed2_shape135() -> None:
     """Soak seed 2, shape 135 (a sliver, 0.04 thick, ``"preliftoff"`` start, random
     palm-control steps drawn from ``default_rng([2, 135])``; the first 139 of its 200 steps).
-    With the simulator of commit ffaa429 plus the working tree of 02:30 UTC, step 138 reports
+    With the simulator of commit ffaa429 plus the working tree of 02:30 UTC, step 138 reported
     a jam with the sliver wedged between exactly anti-parallel finger faces, contact forces
     of 1e11-2e12 x weight, an equilibrium residual of 5.7e-3 x weight and a free descent
-    along the faces (the sliver should slide down between them). Takes ~30 s. Reproducer:
-    ``python /tmp/sim_bugs/soak_unheld_state.py 135 2``."""
+    along the faces (the sliver should slide down between them). Fixed by the simulator's
+    force cap (``simulator.MAX_FORCE``). Takes 30 s to 3 min (every step is checked by LPs),
+    hence ``slow``."""
     rec = soak.soak_shape(2, 135, 139)
     assert rec["exceptions"] == rec["sim_errors"] == rec["violating_steps"] == 0, rec["examples"]
 
