@@ -63,9 +63,14 @@ class PolicySpec:
 
 
 def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
-    """The spec of a trained model directory (its env set-up from its saved config)."""
+    """The spec of a trained model directory: its training env set-up (palm control, start)
+    from its saved config, with the env's default reward weights like every other policy."""
     _, _, name, entry = load_agent(model_dir)
-    kwargs = {k: v for k, v in entry.get("env_kwargs", {}).items() if k not in SUITE_KEYS}
+    kwargs = {
+        k: v
+        for k, v in entry.get("env_kwargs", {}).items()
+        if k not in SUITE_KEYS and not k.startswith("reward_")  # one return for all policies
+    }
     return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir))
 
 
