@@ -746,6 +746,16 @@ class Simulator:
             choices = list(_choices(pl, keys, self.tol))
             if len(choices) > 1:
                 choices.append(keys)
+            # An edge contact at the very end of its hand edge may slide off it: then its twin
+            # (the hand vertex there, on the object's edge), which detection folds into it,
+            # carries the slide on.
+            ends = {
+                k for k in keys if k[0] != geo.SUPPORT and k[1] == ct.EDGE and self._at_end(pl, k)
+            }
+            if ends:
+                twins = ct.detect(pl, self.tol, exclude=ends)
+                if twins != keys:
+                    choices.extend(_choices(pl, twins, self.tol))
             best, best_event = None, False
             for choice in choices:
                 a, E = self._descent(pl, choice)
@@ -757,6 +767,8 @@ class Simulator:
                     q_new, at_event = self._fall_step(q, h, E, d)
                     if q_new[1] < q[1] - 1e-12 * self.size:
                         break
+                    if at_event and q_new[1] <= q[1] and np.any(q_new != q):
+                        break  # a nearly flat way down that reaches a new contact
                     d = 0.5 * d
                 if best is None or q_new[1] < best[1]:
                     best, best_event = q_new, at_event
@@ -770,6 +782,11 @@ class Simulator:
                 return q
             q = best
         raise SimulationError("fall did not come to rest")
+
+    def _at_end(self, pl: ct.Placement, key) -> bool:
+        """Whether contact ``key``'s point lies within two tolerances of an end of its edge."""
+        _, _, _, t, L = pl.evaluate(key)
+        return min(t, 1.0 - t) * L <= 2.0 * self.tol
 
     def _cradle(self, q: np.ndarray, h: np.ndarray, keys: list) -> np.ndarray | None:
         """The rest pose of a fall that has nearly come to rest on fewer than three contacts
