@@ -49,8 +49,9 @@ ENTRY_KEYS = (
 #: Offsets of the evaluation env's seed from the training seed (training envs use
 #: ``seed .. seed + n_envs - 1``); ``agents.evaluate`` draws its held-out shapes elsewhere.
 EVAL_SEED_OFFSET = 1000
-#: Measured on the 2-core machine (docs/training.md): SubprocVecEnv is faster for 2 envs.
-DEFAULT_VEC_ENV = "subproc"
+#: Measured on the 2-core machine (docs/training.md): with the current simulator DummyVecEnv
+#: is as fast or faster for 2 envs (SubprocVecEnv won only while a step was 3x slower).
+DEFAULT_VEC_ENV = "dummy"
 MODEL_DIR = Path(__file__).resolve().parent / "models"
 
 
