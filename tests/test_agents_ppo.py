@@ -119,6 +119,8 @@ def test_tiny_training_saves_and_reloads(trained):
 
 
 def test_evaluation_writes_all_outputs(trained, tmp_path, capsys):
+    pytest.importorskip("matplotlib", reason="the viz extra draws the chart")
+    pytest.importorskip("imageio", reason="the viz extra writes the GIFs")
     out = tmp_path / "eval"
     ev.main(
         [
