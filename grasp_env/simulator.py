@@ -286,7 +286,7 @@ class Simulator:
                     q = q_fallen
                     continue
                 events.append(Event("jam", s, tuple(keys)))
-                return q, s, True
+                return self._jam(q, h, s)
             if plan == "fall":
                 q_fallen = self._fall(q, h, s, events)
                 stuck_fall = q_fallen is q  # no way down after all: plan without falling
@@ -364,11 +364,20 @@ class Simulator:
                     q, banned, losing, forced = q_fallen, set(), None, set()
                     continue
                 events.append(Event("jam", s, tuple(E)))
-                return q, s, True
+                return self._jam(q, h0 + s * dh, s)
             events.append(Event(event.kind, s_star, event.contacts))
             q, s = q_star, s_star
             banned, losing, forced = set(), None, set()
         raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
+
+    def _jam(self, q: np.ndarray, h: np.ndarray, s: float) -> tuple[np.ndarray, float, bool]:
+        """The hand stops at a jam; the object must be held there (at a fold by forces
+        without bound). A jam whose object is neither held nor able to fall (a fall that
+        cannot find its way down) is a failure, not a state to return."""
+        pl = self._place(q, h)
+        if not self._held(pl, ct.detect(pl, self.tol), max_force=np.inf):
+            raise SimulationError(f"jam at s = {s:.6g} with the object neither held nor falling")
+        return q, s, True
 
     @staticmethod
     def _release(E: list, v: np.ndarray, key) -> tuple:
@@ -706,7 +715,9 @@ class Simulator:
             return None
         return q_fallen
 
-    def _held(self, pl: ct.Placement, keys: list, ftol: float | None = None) -> bool:
+    def _held(
+        self, pl: ct.Placement, keys: list, ftol: float | None = None, max_force: float = MAX_FORCE
+    ) -> bool:
         """True when the touching contacts ``keys`` hold the object against gravity (to the
         force tolerance ``ftol``, default the simulator's). At a vertex-vertex touch the
         object may move along either candidate's edge (a union of half-planes): it is held
@@ -720,7 +731,7 @@ class Simulator:
         for choice in _choices(pl, keys, self.tol):
             p, n, _ = _arrays(pl, choice)
             lam, res = _nnls(mech.V_ob(p, n, pl.com_W).T, g)
-            if res > ftol or lam.max() > MAX_FORCE * self.weight:
+            if res > ftol or lam.max() > max_force * self.weight:
                 return False
         return True
 
@@ -775,7 +786,7 @@ class Simulator:
             # A step that ends on an event (a new contact, an edge's end) changes the contacts
             # for the next step however short it is; otherwise a negligible drop means rest.
             if best is None or (
-                not (best_event and np.any(best != q)) and best[1] > q[1] - 1e-9 * self.size
+                not (best_event and np.any(best != q)) and best[1] > q[1] - 1e-12 * self.size
             ):
                 # no admissible descent lowers the object: it is held
                 events.append(Event("fall_end", s, tuple(keys)))
