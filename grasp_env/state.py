@@ -26,6 +26,9 @@ class Event:
     s: float
     contacts: tuple[tuple[int, int, int, int], ...] = ()
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "s", float(self.s))  # a plain float, not a numpy scalar
+
 
 @dataclass(frozen=True, eq=False)
 class State:
