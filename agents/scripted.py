@@ -56,6 +56,9 @@ BRANCH_HALF_WIDTH = 0.15
 REPLAN_TOL = 1e-4
 #: Re-plans allowed per episode (a plan that gets stuck is replayed as it is).
 MAX_REPLANS = 3
+#: Whole-planner plans kept (per scene) by :class:`ScriptedPolicy` with palm control.
+PLAN_CACHE_SIZE = 16
+_PLAN_CACHE: dict[tuple, planner.Plan] = {}
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_TIPPABLE = 0, 1, 2, 3
 
@@ -324,11 +327,19 @@ class ScriptedPolicy:
     def reset(self, obs=None, info=None) -> None:
         """Plan from the env's current state (call after every ``env.reset``)."""
         self._replans = 0
+        self._transit_left = -1  # waypoints left before the planned placement (-1: none)
         self._replan()
 
-    def _replan(self) -> None:
+    def _replan(self, palm_moves: bool = True) -> None:
         base = self.env.unwrapped
         sim, state = base._sim, base._state
+        plan = self._fixed_palm_plan(sim, state)
+        self._use(plan, [])
+        if not plan.success and palm_moves and base.palm_control:
+            self._replan_with_palm(sim, state)
+
+    def _fixed_palm_plan(self, sim: Simulator, state) -> planner.Plan:
+        """Close until both fingers touch, lift and adjust the grip, the palm where it is."""
         plan = planner.Plan()
         plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
         if not planner._both_touch(state):
@@ -337,9 +348,44 @@ class ScriptedPolicy:
         state = planner.lift(sim, state, plan, self.dq)
         if plan.success:
             planner.adjust_grip(sim, state, plan)
+        return plan
+
+    def _use(self, plan: planner.Plan, transit: list[np.ndarray]) -> None:
+        """Follow ``transit`` (hand configurations, the object at rest), then ``plan``."""
         self.plan = plan
-        self._waypoints = [(st.state.hand, st.state.object_pose) for st in plan.steps[1:]]
+        rest = self.env.unwrapped._state.object_pose.copy()
+        self._waypoints = [(h, rest) for h in transit]
+        self._waypoints += [(st.state.hand, st.state.object_pose) for st in plan.steps[1:]]
+        self._transit_left = len(transit) if transit else -1
         self._chunk, self._expected = [], None
+
+    def _replan_with_palm(self, sim: Simulator, state) -> None:
+        """With palm control, when lifting from the env's hand placement fails: the whole
+        planner's grasp (any of its placements, tilted palm included), reached from the env's
+        state along :func:`grasp_env.planner.approach_path`. Only while the object still rests
+        at its scene pose (the plan starts there). At the placement, lifting is planned anew
+        from the env's state (:meth:`act`): the planned squeeze can cross a tipping
+        bifurcation, where round-off in the env's hand (float32 actions) changes the outcome."""
+        scene = sim.scene
+        if np.abs(state.object_pose - scene.object.start_pose).max() > 1e-9 * sim.size:
+            return
+        plan = self._full_plan(sim)
+        if not plan.success:
+            return
+        path = planner.approach_path(sim, state, plan.steps[0].state.hand)
+        if path is not None:
+            self._use(plan, path)
+
+    def _full_plan(self, sim: Simulator) -> planner.Plan:
+        """:func:`grasp_env.planner.plan_grasp` on the env's scene, cached per scene (the
+        search over placements can take a minute)."""
+        scene = sim.scene
+        key = (repr(scene), self.dq)
+        if key not in _PLAN_CACHE:
+            if len(_PLAN_CACHE) >= PLAN_CACHE_SIZE:
+                _PLAN_CACHE.pop(next(iter(_PLAN_CACHE)))
+            _PLAN_CACHE[key] = planner.plan_grasp(scene, sim=sim, dq=self.dq)
+        return _PLAN_CACHE[key]
 
     def act(self, obs=None) -> np.ndarray:
         """The next action, float32 in [-1, 1], of the env's action shape."""
@@ -352,8 +398,14 @@ class ScriptedPolicy:
                 if off > REPLAN_TOL * base._sim.size and self._replans < MAX_REPLANS:
                     self._replans += 1
                     self._replan()
+            if self._transit_left == 0 and self.plan is not None and self._waypoints:
+                self._transit_left = -1  # at the placement: lift from the env's own state
+                plan = self._fixed_palm_plan(base._sim, state)
+                if plan.success:
+                    self._use(plan, [])
             if self._waypoints:
                 hand, self._expected = self._waypoints.pop(0)
+                self._transit_left -= 1
                 self._chunk = self._actions(hand - state.hand)
         if not self._chunk:
             return np.zeros(base.action_space.shape, np.float32)

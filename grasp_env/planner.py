@@ -641,6 +641,92 @@ def grip_curves(sim: Simulator, state: State, half_width: float = 0.15, n: int =
 
 
 # ---------------------------------------------------------------------- the whole plan
+#: Finger openings (rad) from the placement's finger angles tried by :func:`approach_path`
+#: for the final descent, and the margin (palm widths) it keeps from the object in transit.
+APPROACH_OPENINGS = (0.3, 0.6, 0.15, 1.0, 0.0)
+APPROACH_MARGIN = 0.02
+#: Path resolution of the clearance check, in palm widths and radians.
+APPROACH_RESOLUTION = 0.005
+
+
+def _segment_clear(scene, a: np.ndarray, b: np.ndarray, q_obj: np.ndarray, tol: float) -> bool:
+    """The hand moving in a straight line from ``a`` to ``b`` (hand configurations) keeps
+    clear of the object and the support (up to ``tol``) at every checked sample."""
+    d = b - a
+    w = scene.palm.width
+    span = max(float(np.abs(d[:2]).max()) / w, float(np.abs(d[2:]).max()) * 0.5)
+    n = max(1, math.ceil(span / APPROACH_RESOLUTION))
+    return all(_hand_clear(scene, a + (k / n) * d, q_obj, tol) for k in range(1, n + 1))
+
+
+def approach_path(sim: Simulator, state: State, target: np.ndarray) -> list[np.ndarray] | None:
+    """A collision-free hand path from ``state`` (object resting at its pose) to the
+    pre-liftoff hand ``target``, as hand configurations reached by straight-line moves.
+
+    The fingers open to their limits, the palm rises clear of the object, moves and turns to
+    above the target (along the world vertical or the target palm's normal) with the fingers
+    opened a little from the target's, descends to the target palm pose, and the fingers close
+    to the target angles. The first such path that the clearance check and then the simulator
+    find free (the object does not move and the hand reaches ``target``) is returned, without
+    the start configuration; None if there is none.
+    """
+    scene = sim.scene
+    w = scene.palm.width
+    q_obj = state.object_pose
+    lim = scene.joint_limits
+    top = float(geo.transform(q_obj, scene.object.vertices_B)[:, 1].max())
+    tol = 1e-6 * sim.size
+    start = state.hand.copy()
+    opened = start.copy()
+    opened[3] = lim[0, 0] + 0.05
+    opened[4] = lim[1, 1] - 0.05
+    th = float(target[2])
+    for delta in APPROACH_OPENINGS:
+        fingers = np.clip(target[3:] + np.array([-delta, delta]), lim[:, 0], lim[:, 1])
+        for direction in (np.array([0.0, 1.0]), np.array([-math.sin(th), math.cos(th)])):
+            low = target.copy()
+            low[3:] = fingers
+            above = None
+            for s in np.arange(0.0, 3.0 * w, 0.02 * w):
+                h = low.copy()
+                h[:2] += s * direction
+                lowest = min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h))
+                if lowest > top + APPROACH_MARGIN * w:
+                    above = h
+                    break
+            if above is None:
+                continue
+            raised = opened.copy()
+            raised[1] = max(above[1], opened[1])
+            path = []
+            for h in (opened, raised, above, low, target.copy()):
+                if not path or np.abs(h - path[-1]).max() > 0.0:
+                    path.append(h)
+            a = start
+            ok = True
+            for b in path:
+                ok = _segment_clear(scene, a, b, q_obj, tol if b is path[-1] else 10 * tol)
+                if not ok:
+                    break
+                a = b
+            if ok and _path_moves_nothing(sim, state, path):
+                return path
+    return None
+
+
+def _path_moves_nothing(sim: Simulator, state: State, path: list[np.ndarray]) -> bool:
+    start = state
+    try:
+        for h in path:
+            state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
+    except (SimulationError, SolverError):
+        return False
+    return bool(
+        np.abs(state.hand - path[-1]).max() < 1e-9 * sim.size
+        and np.abs(state.object_pose - start.object_pose).max() < 1e-9 * sim.size
+    )
+
+
 def plan_grasp(scene, sim: Simulator | None = None, dq: float = 0.02, adjust: bool = True) -> Plan:
     """Run the three phases on a scene (a Scene, bundled name, path or dict)."""
     t0 = time.process_time()

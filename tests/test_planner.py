@@ -148,3 +148,22 @@ def test_tipping_placement_puts_a_fingertip_at_a_support_contact():
     other = f"finger{2 - hold}"
     touch = [c for c in state.contacts if c.body == other]
     assert touch and all(region.contains(c.point, c.normal, 1e-7) for c in touch)
+
+
+def test_approach_path_reaches_a_tilted_placement_without_touching_the_object():
+    # From the centred placement (fingers touching) to a tilted-palm tipping placement.
+    sim = grasp_env.Simulator("square")
+    target, _ = planner.tipping_placement(sim, palm_angles=(-0.4,), sides=("right",))
+    state = planner.centred_placement(sim)
+    path = planner.approach_path(sim, state, target.hand)
+    assert path is not None and np.array_equal(path[-1], target.hand)
+    start = sim.scene.object.start_pose
+    for h in path:
+        # the object stays put at every waypoint, and the hand clears the support
+        state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
+        assert np.allclose(state.object_pose, start, atol=1e-9)
+        assert not state.jammed and not state.hand_blocked
+        for poly in kin.hand_polygons_W(sim.scene, state.hand):
+            assert poly[:, 1].min() >= -1e-9
+    assert np.allclose(state.hand, target.hand, atol=1e-9)
+    assert {"finger1", "finger2"} <= {c.body for c in state.contacts}
