@@ -22,7 +22,9 @@ Policy (issue 5)::
 
 plans from the env's current state with the planner's lifting and grip-adjustment phases
 (palm fixed, so it works with ``palm_control`` False or True) and replays the plan as scaled
-env actions, splitting increments larger than one action into several steps.
+env actions, splitting increments larger than one action into several steps. With
+``palm_control`` True, when that fails, it moves the palm to the whole planner's placement
+(tilted, for square, heavy_square and triangle) and lifts from there.
 """
 
 from __future__ import annotations
@@ -308,7 +310,16 @@ class ScriptedPolicy:
 
     Works with ``palm_control`` False or True (the palm actions stay zero) from the
     ``"scene"`` start when the scene's palm is over the object (as in every bundled scene),
-    and from the ``"preliftoff"`` start.
+    and from the ``"preliftoff"`` start, on scenes that lift from there.
+
+    With ``palm_control`` True, if lifting from the env's placement fails and the object still
+    rests at its scene pose, it runs :func:`grasp_env.planner.plan_grasp` on the env's scene
+    (cached per scene in the process: the placement search can take a minute of CPU), drives
+    the hand to the plan's pre-liftoff placement along a collision-free
+    :func:`grasp_env.planner.approach_path` (palm actions included), and there plans lifting
+    and grip adjustment again from the env's own state. Scenes whose only plans start with a
+    tilted palm (square, heavy_square, triangle) need ``palm_control`` True; the approach
+    takes most of the steps (about 90-150 at the default step sizes).
 
     Args:
         env: a ``FrictionlessGraspEnv``, possibly wrapped.
