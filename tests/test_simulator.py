@@ -64,8 +64,10 @@ ROUNDING = 1e-14
 #: valid move in these tests needs more than a few dozen increments.
 MAX_ITERATIONS = 400
 #: Wall-clock limit of one hand move in the randomised sweeps (seconds). A move takes well
-#: under a second; one that runs this long is stuck in a loop (reported as a failure).
-MOVE_TIME_LIMIT = 10.0
+#: under a second; the slowest (square path 253, move 7: a fall whose Newton solves on an
+#: over-determined contact set converge only linearly, then the retry on the reference path)
+#: takes about 10 s on a busy 2-core machine; one that runs this long is stuck in a loop.
+MOVE_TIME_LIMIT = 40.0
 #: Wall-clock limit of any one test (seconds); the slowest passing test takes ~5 s.
 TEST_TIME_LIMIT = 90.0
 
