@@ -418,7 +418,7 @@ class Simulator:
         p, n, bodies = _arrays(pl, keys)
         V = mech.V_ob(p, n, pl.com_W)
         xi = mech.xi(self.scene, h, dh, bodies, p, n)
-        if not np.any(xi):
+        if keys and not np.any(xi):
             # The hand moves no contact (the object on the support, the fingers in free
             # space): v = 0 is optimal, with every contact tight, whenever the contacts hold
             # the object exactly; only the borderline cases need the LP.
@@ -956,6 +956,8 @@ def _nnls(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, float]:
     import; ``import grasp_env`` should not)."""
     from scipy.optimize import nnls
 
+    if W.shape[1] == 0:  # no contacts; scipy 1.17's nnls aborts the process on this
+        return np.zeros(0), float(np.linalg.norm(g))
     return nnls(W, g)
 
 

@@ -1332,3 +1332,13 @@ def test_independent_forces_match_lstsq() -> None:
     W = np.array([[1.0, 2.0, 0.0], [0.0, 0.0, 1.0], [1.0, 2.0, 0.0]]).T  # columns 0, 2 equal
     assert _independent_forces(W, np.ones(3)) is None
     assert _independent_forces(np.zeros((3, 2)), np.ones(3)) is None
+
+
+def test_no_contacts_never_reach_scipy_nnls() -> None:
+    """Regression (soak seed 4, shape 52): with no contacts at all the hold test used to
+    call scipy's nnls on a 3x0 matrix, which aborts the whole process in scipy 1.17
+    ("double free"). No contacts hold nothing: the residual is the whole weight."""
+    from grasp_env.simulator import _nnls
+
+    lam, res = _nnls(np.zeros((3, 0)), np.array([0.0, 2.5, 0.0]))
+    assert lam.shape == (0,) and res == pytest.approx(2.5)
