@@ -40,6 +40,8 @@ import os
 import platform
 import time
 import traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -541,28 +543,35 @@ def run_soak(
     if jobs:
         fh = checkpoint.open("a") if checkpoint is not None else None
         ctx = mp.get_context("spawn" if os.name == "nt" else "fork")
-        with ctx.Pool(workers) if workers > 1 else _Serial() as pool:
-            for k, rec in enumerate(pool.imap_unordered(_work, jobs)):
+        try:
+            for k, rec in enumerate(_results(jobs, workers, ctx)):
                 done[rec["index"]] = rec
                 if fh is not None:
                     fh.write(json.dumps(rec) + "\n")
                     fh.flush()
                 if (k + 1) % max(1, len(jobs) // 20) == 0:
                     print(f"  {k + 1}/{len(jobs)} shapes, {time.perf_counter() - t0:.0f} s")
-        if fh is not None:
-            fh.close()
+        except BrokenProcessPool:
+            missing = sorted(j[1] for j in jobs if j[1] not in done)
+            raise SystemExit(
+                f"a soak worker died (a crash in native code) with shapes {missing} unfinished; "
+                "re-run one with --only INDEX to find it"
+            ) from None
+        finally:
+            if fh is not None:
+                fh.close()
     return [done[i] for i in sorted(done)], time.perf_counter() - t0
 
 
-class _Serial:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def imap_unordered(self, fn, jobs):
-        return map(fn, jobs)
+def _results(jobs: list, workers: int, ctx):
+    """Shape records as they finish: in worker processes (a worker that dies raises
+    ``BrokenProcessPool`` instead of leaving the soak waiting forever), or serially."""
+    if workers <= 1:
+        yield from map(_work, jobs)
+        return
+    with ProcessPoolExecutor(workers, mp_context=ctx) as ex:
+        for fut in as_completed([ex.submit(_work, job) for job in jobs]):
+            yield fut.result()
 
 
 def summarise(records: list[dict]) -> dict[str, Any]:
