@@ -94,6 +94,7 @@ class Simulator:
         self.fall_step = float(fall_step) * self.size
         self.rho = mech.gyration_radius(self.scene)
         self.weight = self.scene.object_weight
+        self._gravity = mech.gravity_wrench(self.scene)  # the wrench the contacts must supply
         self.ftol = 1e-9 * self.weight
         # Newton stops well inside the tolerance, but not below what doubles can resolve
         self.newton_tol = max(1e-3 * self.tol, 64 * np.finfo(float).eps * L)
@@ -275,10 +276,9 @@ class Simulator:
                 if losing is not None:
                     # Contacts dropped for a negative force leave the object unheld just
                     # ahead: past the boundary of equilibrium it falls.
-                    nudged = self._nudge(q, s, *losing, h0, dh, s_end)
-                    if nudged is not None:
-                        s, q = nudged
-                        q = self._fall(q, h0 + s * dh, s, events)
+                    fallen = self._nudge_and_fall(q, s, *losing, h0, dh, s_end, events)
+                    if fallen is not None:
+                        s, q = fallen
                         banned, losing, forced = set(), None, set()
                         continue
                 q_fallen = self._fall_if_unheld(q, h, s, events)
@@ -349,10 +349,9 @@ class Simulator:
                 if event.kind == "lost_contact" or reverted:
                     # The object sits on the boundary of equilibrium: just ahead, no contact
                     # set holds it. Nudge the hand past the boundary and let the object fall.
-                    nudged = self._nudge(q, s, E, v, h0, dh, s_end)
-                    if nudged is not None:
-                        s, q = nudged
-                        q = self._fall(q, h0 + s * dh, s, events)
+                    fallen = self._nudge_and_fall(q, s, E, v, h0, dh, s_end, events)
+                    if fallen is not None:
+                        s, q = fallen
                         banned, losing, forced = set(), None, set()
                         continue
                 # Nothing consistent lies just ahead: the active contacts' equations fold
@@ -422,7 +421,7 @@ class Simulator:
             # The hand moves no contact (the object on the support, the fingers in free
             # space): v = 0 is optimal, with every contact tight, whenever the contacts hold
             # the object exactly; only the borderline cases need the LP.
-            if _nnls(V.T, mech.gravity_wrench(self.scene))[1] <= 1e-12 * self.weight:
+            if _nnls(V.T, self._gravity)[1] <= 1e-12 * self.weight:
                 return 0.0, list(keys), np.zeros(3)
         res = mech.motion_lp(V, xi, self.weight, self.lp_solver)
         if res.status == "infeasible":
@@ -520,7 +519,7 @@ class Simulator:
         """
         m = len(E)
         rows = np.array([1.0, 1.0, 1.0 / self.rho])  # force, force, moment / rho
-        g = mech.gravity_wrench(self.scene) / self.weight
+        g = self._gravity / self.weight
         tip = np.array([k[1] == ct.TIP for k in E])
         q = q0.copy()
         lam = None
@@ -596,7 +595,7 @@ class Simulator:
         if E:
             W = mech.V_ob(P, N, q[:2]).T
             scale = self.size / self.weight
-            g = mech.gravity_wrench(self.scene)
+            g = self._gravity
             lam = _independent_forces(W, g) if len(E) <= 3 else None
             if lam is not None:
                 res = float(np.linalg.norm(W @ lam - g))
@@ -675,8 +674,17 @@ class Simulator:
         W = mech.V_ob(P, N, q[:2]).T
         if abs(np.linalg.det(W * self._scale[:, None])) < 1e-8:
             return False
-        lam = np.linalg.solve(W, mech.gravity_wrench(self.scene))
+        lam = np.linalg.solve(W, self._gravity)
         return bool(lam.min() > 1e-6 * self.weight)
+
+    def _nudge_and_fall(self, q, s, E, v, h0, dh, s_end, events):
+        """Nudge the hand past the boundary of equilibrium (:meth:`_nudge`) and let the
+        object fall to rest there: ``(s, q)``, or None if there is no such boundary ahead."""
+        nudged = self._nudge(q, s, E, v, h0, dh, s_end)
+        if nudged is None:
+            return None
+        s, q = nudged
+        return s, self._fall(q, h0 + s * dh, s, events)
 
     def _nudge(self, q, s, E, v, h0, dh, s_end):
         """Smallest step along ``E`` (geometrically consistent) after which the touching
@@ -727,7 +735,7 @@ class Simulator:
         ftol = self.ftol if ftol is None else ftol
         if not keys:
             return False
-        g = mech.gravity_wrench(self.scene)
+        g = self._gravity
         for choice in _choices(pl, keys, self.tol):
             p, n, _ = _arrays(pl, choice)
             lam, res = _nnls(mech.V_ob(p, n, pl.com_W).T, g)
@@ -902,7 +910,7 @@ class Simulator:
             return np.zeros(0)
         p, n, _ = _arrays(pl, keys)
         V = mech.V_ob(p, n, pl.com_W)
-        g = mech.gravity_wrench(self.scene)
+        g = self._gravity
         if len(keys) <= 3:
             # independent wrenches: the only forces in equilibrium, if non-negative
             lam = _independent_forces(V.T, g)
