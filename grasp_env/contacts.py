@@ -88,7 +88,9 @@ class Placement:
         hand_n_W: their outward edge normals (each (4, 2)).
     """
 
-    __slots__ = ("com_W", "h", "hand_W", "hand_n_W", "obj_W", "obj_n_W", "q", "scene")
+    __slots__ = (
+        "_pair_gaps", "com_W", "h", "hand_W", "hand_n_W", "obj_W", "obj_n_W", "q", "scene"
+    )  # fmt: skip
 
     def __init__(self, scene: Scene, q: np.ndarray, h: np.ndarray) -> None:
         self.scene, self.q, self.h = scene, q, h
@@ -109,10 +111,23 @@ class Placement:
         world[:, 1] = sv * x + cv * y
         m, n = local.n_vertices, local.n_object
         world[:m] += origins[local.body[:m]]
+        self._pair_gaps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.com_W = q[:2]
         self.obj_W, self.obj_n_W = world[:n], world[m : m + n]
         self.hand_W = world[n:m].reshape(3, 4, 2)
         self.hand_n_W = world[m + n :].reshape(3, 4, 2)
+
+    def pair_gaps(self, body: int) -> tuple[np.ndarray, np.ndarray]:
+        """Signed gaps of every object vertex to every edge line of hand ``body`` (k, j) and
+        of every hand vertex to every object edge line (j, k); computed once per placement
+        for :func:`min_gap` and :func:`separations`."""
+        cache = self._pair_gaps.get(body)
+        if cache is None:
+            obj, poly = self.obj_W, self.hand_W[body - 1]
+            g = ((obj[:, None, :] - poly[None]) * self.hand_n_W[body - 1][None]).sum(-1)
+            g2 = ((poly[:, None, :] - obj[None]) * self.obj_n_W[None]).sum(-1)
+            cache = self._pair_gaps[body] = (g, g2)
+        return cache
 
     def evaluate(self, key: ContactKey) -> tuple[np.ndarray, np.ndarray, float, float, float]:
         """Point (2,), normal into the object (2,), gap, edge parameter t and edge length.
@@ -286,28 +301,26 @@ def min_gap(
     pair (``key`` names the edge of largest gap, i.e. the edge the vertex entered through).
     """
     worst, worst_key = np.inf, None
-    obj, obj_n = pl.obj_W, pl.obj_n_W
+    obj = pl.obj_W
     for body in bodies if bodies is not None else (0, 1, 2, 3):
         if body == geo.SUPPORT:
             for k in range(len(obj)):
                 if obj[k, 1] < worst and (0, EDGE, k) not in exclude:
                     worst, worst_key = float(obj[k, 1]), (0, EDGE, k, 0)
             continue
-        poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
-        g = ((obj[:, None, :] - poly[None]) * n[None]).sum(-1)  # object vertex k vs hand edge j
+        g, g2 = pl.pair_gaps(body)  # object vertex k vs hand edge j; hand vertex j vs edge k
         inside = g.max(axis=1)
         for k in np.argsort(inside):
             if inside[k] >= worst:
                 break
             if (body, EDGE, int(k)) not in exclude:
                 worst, worst_key = float(inside[k]), (body, EDGE, int(k), int(np.argmax(g[k])))
-        g = ((poly[:, None, :] - obj[None]) * obj_n[None]).sum(-1)  # hand vertex j vs object edge k
-        inside = g.max(axis=1)
+        inside = g2.max(axis=1)
         for j in np.argsort(inside):
             if inside[j] >= worst:
                 break
             if (body, TIP, int(j)) not in exclude:
-                worst, worst_key = float(inside[j]), (body, TIP, int(np.argmax(g[j])), int(j))
+                worst, worst_key = float(inside[j]), (body, TIP, int(np.argmax(g2[j])), int(j))
     return worst, worst_key
 
 
@@ -316,13 +329,10 @@ def separations(pl: Placement, bodies) -> dict[int, float]:
     gap between them along an edge normal of either polygon, a lower bound on their distance
     (minus the overlap depth when they overlap)."""
     out = {}
-    obj, obj_n = pl.obj_W, pl.obj_n_W
     for body in bodies:
         if body == geo.SUPPORT:
             continue
-        poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
-        g = ((obj[:, None, :] - poly[None]) * n[None]).sum(-1)  # object vertex k, hand edge j
-        g2 = ((poly[:, None, :] - obj[None]) * obj_n[None]).sum(-1)  # hand vertex j, edge k
+        g, g2 = pl.pair_gaps(body)
         out[body] = float(max(g.min(axis=0).max(), g2.min(axis=0).max()))
     return out
 
