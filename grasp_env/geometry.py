@@ -112,6 +112,27 @@ def finger_link_pose(h: np.ndarray, palm_width: float, finger: int) -> np.ndarra
     return np.array([xp + c * jx, yp + s * jx, thp + h[2 + finger]])
 
 
+def segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> float:
+    """Least distance between segments ``a0 a1`` and ``b0 b1``; zero where they cross."""
+    da, db, d0 = a1 - a0, b1 - b0, b0 - a0
+    denom = cross2(da, db)
+    if denom != 0.0:
+        t, u = cross2(d0, db) / denom, cross2(d0, da) / denom
+        if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0:
+            return 0.0
+
+    def to_segment(p: np.ndarray, c0: np.ndarray, dc: np.ndarray) -> float:
+        t = np.clip(np.dot(p - c0, dc) / max(np.dot(dc, dc), 1e-300), 0.0, 1.0)
+        return float(np.linalg.norm(p - c0 - t * dc))
+
+    return min(
+        to_segment(a0, b0, db),
+        to_segment(a1, b0, db),
+        to_segment(b0, a0, da),
+        to_segment(b1, a0, da),
+    )
+
+
 def is_convex_ccw(vertices: np.ndarray, tol: float = 1e-12) -> bool:
     """True when the polygon is strictly convex with counter-clockwise vertices."""
     d = np.roll(vertices, -1, axis=0) - vertices

@@ -15,8 +15,9 @@ does. Phases:
 2. **Lifting.** Finger increments with the palm fixed, simulated after every increment: the
    paper's equal-rate squeeze while it makes progress toward the palm, else the best of a few
    alternatives (one finger, rolling, letting go a little), until form closure with the
-   object off the support. Once the fingertips are closer than the object's width with the
-   object off the support they stay so (Toussaint's no-drop argument); a constrained fall is
+   object off the support. Once the gap between the fingers (:func:`finger_gap`) is narrower
+   than the object with the object off the support it stays so (Toussaint's no-drop
+   argument); an increment the simulator cannot follow is refused; a constrained fall is
    recovered by lifting on from where the object came to rest.
 3. **Grip adjustment.** Keep four contacts, treat ``q1`` as the independent variable, solve
    ``q2`` and the object pose from the four contact equations (eq. 28), and step along the
@@ -338,10 +339,14 @@ def palm_distance(state: State) -> float:
     return float(-r[1])
 
 
-def fingertip_distance(state: State) -> float:
-    """Distance between the two fingertips."""
-    tips = kin.fingertips_W(state.scene, state.hand)
-    return float(np.linalg.norm(tips[0] - tips[1]))
+def finger_gap(state: State) -> float:
+    """Width of the opening between the fingers: the least distance between their axes (joint
+    to tip), zero where they cross. Generalises the paper's fingertip distance to fingers that
+    have closed past each other (the object then rests above the crossing and cannot drop)."""
+    scene = state.scene
+    tips = kin.fingertips_W(scene, state.hand)
+    joints = kin.body_poses_W(scene, state.hand)[1:3, :2]
+    return geo.segment_distance(joints[0], tips[0], joints[1], tips[1])
 
 
 def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: int = 300) -> State:
@@ -356,8 +361,10 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
     letting go a little followed by a squeeze (out of a wedge); the best is taken; after
     ``PATIENCE`` steps without a new record only a record is, so the phase cannot cycle. An
     increment is refused if it drops the object (back onto the support after it left) or,
-    with the object off the support, opens the fingertips from closer than the object's width
-    to wider (Toussaint's no-drop condition, section 3.2: while ``d < w`` it cannot drop).
+    with the object off the support, opens the gap between the fingers (:func:`finger_gap`,
+    the fingertip distance ``d`` of section 3.2 while the fingers have not crossed) from
+    narrower than the object's width to wider (Toussaint's no-drop condition: while ``d < w``
+    it cannot drop), or if the simulator cannot follow it.
     """
     width = object_width(sim.scene)
     squeeze = np.array([dq, -dq])
@@ -370,21 +377,21 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
             return state
 
         chosen = None
-        nxt = sim.move_hand(state, fingers=state.finger_angles + squeeze)
-        progress = _score(nxt) < record - PROGRESS_TOL * sim.size
+        nxt = _try_fingers(sim, state, squeeze)
         if _admissible(nxt, state, lifted, width) and (
-            progress or (not nxt.jammed and since_record < PATIENCE)
+            _score(nxt) < record - PROGRESS_TOL * sim.size
+            or (not nxt.jammed and since_record < PATIENCE)
         ):
             chosen = [nxt]
         else:
             best = None
             for m in moves:
-                a = sim.move_hand(state, fingers=state.finger_angles + m)
+                a = _try_fingers(sim, state, m)
                 if not _admissible(a, state, lifted, width):
                     continue
                 seq = [a]
                 if min(m[0], -m[1]) < 0 and not _grasped(a):  # a release: squeeze after
-                    b = sim.move_hand(a, fingers=a.finger_angles + squeeze)
+                    b = _try_fingers(sim, a, squeeze)
                     if _admissible(b, a, lifted, width) and _score(b) < _score(a):
                         seq.append(b)
                 s = _score(seq[-1])
@@ -413,14 +420,30 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
     return state
 
 
-def _admissible(nxt: State, prev: State, lifted: bool, width: float) -> bool:
-    """The hand moved, the object was not dropped, and once the fingertips are closer than the
-    object's width with the object off the support they stay so (unless the grasp closed)."""
-    if np.abs(nxt.hand - prev.hand).max() <= 1e-12:
+def _try_fingers(sim: Simulator, state: State, dq: np.ndarray) -> State | None:
+    """The state after finger increment ``dq`` (see :func:`_try_move`)."""
+    return _try_move(sim, state, fingers=state.finger_angles + dq)
+
+
+def _try_move(sim: Simulator, state: State, **targets) -> State | None:
+    """``sim.move_hand(state, **targets)``; None where the simulator cannot follow the motion
+    (a jam with the object neither held nor falling): the planner refuses that increment and
+    tries another instead of giving up the whole plan."""
+    try:
+        return sim.move_hand(state, **targets)
+    except (SimulationError, SolverError):
+        return None
+
+
+def _admissible(nxt: State | None, prev: State, lifted: bool, width: float) -> bool:
+    """The simulator followed the increment, the hand moved, the object was not dropped, and
+    once the finger gap is narrower than the object's width with the object off the support it
+    stays so (unless the grasp closed)."""
+    if nxt is None or np.abs(nxt.hand - prev.hand).max() <= 1e-12:
         return False
     if (lifted or _off_support(prev)) and not _off_support(nxt):
         return False
-    opened = fingertip_distance(prev) < width <= fingertip_distance(nxt)
+    opened = finger_gap(prev) < width <= finger_gap(nxt)
     return _grasped(nxt) or not (_off_support(nxt) and opened)
 
 
@@ -588,8 +611,10 @@ def adjust_grip(
         # stays closed off the support and y* falls.
         for _, q1_new, z_new, br in sorted(candidates, key=lambda c: c[0]):
             target = br.config(q1_new, z_new)
-            moved = sim.move_hand(state, palm=target[:3], fingers=target[3:])
-            y_moved = mech.grip_objective(moved) if _grasped(moved) else math.inf
+            moved = _try_move(sim, state, palm=target[:3], fingers=target[3:])
+            y_moved = (
+                mech.grip_objective(moved) if moved is not None and _grasped(moved) else math.inf
+            )
             if y_moved < y:
                 break
         else:

@@ -167,3 +167,42 @@ def test_approach_path_reaches_a_tilted_placement_without_touching_the_object():
             assert poly[:, 1].min() >= -1e-9
     assert np.allclose(state.hand, target.hand, atol=1e-9)
     assert {"finger1", "finger2"} <= {c.body for c in state.contacts}
+
+
+def test_segment_distance_matches_a_dense_sampling():
+    # Independent check: the least distance over a fine grid of points on both segments
+    # (exact to the grid spacing), and zero for segments that cross.
+    rng = np.random.default_rng(5)
+    s = np.linspace(0.0, 1.0, 801)[:, None]
+    for _ in range(40):
+        a0, a1, b0, b1 = rng.uniform(-1, 1, (4, 2))
+        pa, pb = a0 + s * (a1 - a0), b0 + s * (b1 - b0)
+        brute = np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=2).min()
+        spacing = max(np.linalg.norm(a1 - a0), np.linalg.norm(b1 - b0)) / 800
+        assert geo.segment_distance(a0, a1, b0, b1) == pytest.approx(brute, abs=spacing)
+    assert geo.segment_distance(*np.array([[0, 0], [1, 1], [0, 1], [1, 0]], float)) == 0.0
+    # parallel segments side by side, and collinear ones end to end
+    assert geo.segment_distance(*np.array([[0, 0], [1, 0], [0.5, 0.3], [2, 0.3]], float)) == (
+        pytest.approx(0.3)
+    )
+    assert geo.segment_distance(*np.array([[0, 0], [1, 0], [1.5, 0], [2, 0]], float)) == (
+        pytest.approx(0.5)
+    )
+
+
+def test_finger_gap_is_the_tip_distance_until_the_fingers_cross():
+    sim = grasp_env.Simulator("fig13")
+    q_obj = sim.scene.object.start_pose
+
+    def gap(q1, q2):
+        state = sim.settle(q_obj, np.array([0.0, 2.0, 0.0, q1, q2]))
+        tips = kin.fingertips_W(sim.scene, state.hand)
+        return planner.finger_gap(state), float(np.linalg.norm(tips[0] - tips[1]))
+
+    # hanging straight down: parallel axes 1.0 apart (the tips, 0.6 and 0.7 down, are further)
+    assert gap(-math.pi / 2, -math.pi / 2) == pytest.approx((1.0, math.hypot(1.0, 0.1)))
+    # closed part way, the tips are the nearest points
+    g, d = gap(-1.2, -math.pi + 1.2)
+    assert g == pytest.approx(d) and d < 1.0
+    # both closed to 0.3 rad below the palm: their axes cross 0.155 under its centre
+    assert gap(-0.3, -math.pi + 0.3)[0] == 0.0
