@@ -1,9 +1,10 @@
 """Run the benchmark suite of issue 7 and write ``benchmarks/results/*.md``.
 
 Usage: ``python -m benchmarks [--quick] [--only NAME ...] [--out DIR]`` from the repository
-root (full suite about 10 minutes, ``--quick`` about one). Names: throughput,
-work_precision, profile, memory, ppo (PPO training throughput, ``ppo_throughput.py``; left out
-of ``--quick`` unless named with ``--only``).
+root (full suite about 15 minutes, ``--quick`` about one). Names: throughput,
+work_precision, profile, memory, planner (the scripted planner on random shapes,
+``planner_shapes.py``), ppo (PPO training throughput, ``ppo_throughput.py``; left out of
+``--quick`` unless named with ``--only``).
 """
 
 from __future__ import annotations
@@ -12,7 +13,14 @@ import argparse
 import time
 from pathlib import Path
 
-from benchmarks import memory, ppo_throughput, profile_step, throughput, work_precision
+from benchmarks import (
+    memory,
+    planner_shapes,
+    ppo_throughput,
+    profile_step,
+    throughput,
+    work_precision,
+)
 from benchmarks.common import RESULTS, headless
 
 SUITE = {
@@ -20,6 +28,9 @@ SUITE = {
     "work_precision": lambda quick, out: work_precision.run(quick, out / "work_precision.md"),
     "profile": lambda quick, out: profile_step.run(quick, out / "profile.md"),
     "memory": lambda quick, out: memory.run(quick, out / "memory.md"),
+    "planner": lambda quick, out: planner_shapes.run(
+        out / "planner_shapes.md", shapes=2 if quick else 12
+    ),
     "ppo": lambda quick, out: ppo_throughput.run(quick, out / "ppo_throughput.md"),
 }
 QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget

@@ -5,8 +5,8 @@ the fig13 hand, seeded ``seed, seed + 1, ...``. Every plan runs in its own proce
 wall-clock limit (a plan that tries every placement can take minutes), ``--workers`` at a
 time. Writes a Markdown table (one row a shape, then the counts per outcome).
 
-Usage: ``python benchmarks/planner_shapes.py [--seed S] [--shapes N] [--timeout T]
-[--workers W] [--out FILE]`` from the repository root.
+Usage: ``python -m benchmarks.planner_shapes [--seed S] [--shapes N] [--timeout T]
+[--workers W] [--out FILE]`` from the repository root (12 shapes: about 5 minutes).
 """
 
 from __future__ import annotations
@@ -21,7 +21,9 @@ from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-RESULTS = Path(__file__).resolve().parent / "results"
+from benchmarks.common import RESULTS, table, write
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def plan_one(seed: int) -> dict:
@@ -62,7 +64,8 @@ def _run(seed: int, timeout: float) -> dict:
     t0 = time.perf_counter()
     try:
         out = subprocess.run(
-            [sys.executable, __file__, "--one", str(seed)],
+            [sys.executable, "-m", "benchmarks.planner_shapes", "--one", str(seed)],
+            cwd=ROOT,
             capture_output=True,
             text=True,
             timeout=timeout,
@@ -81,36 +84,71 @@ def _fmt(x, spec: str) -> str:
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else format(x, spec)
 
 
-def report(rows: list[dict], timeout: float) -> str:
+def report(rows: list[dict], timeout: float) -> list[str]:
+    """The page's body: the per-shape table and the counts per outcome."""
     counts = Counter(r["status"] for r in rows)
-    lines = [
-        "# Scripted planner on random shapes",
-        "",
-        f"`python benchmarks/planner_shapes.py`: {len(rows)} shapes of the env's randomizer on "
+    body = [
+        f"`python -m benchmarks.planner_shapes`: {len(rows)} shapes of the env's randomizer on "
         f"the fig13 hand, wall limit {timeout:.0f} s a plan. `checked`: the final state is in "
         "form closure with the object off the support (recomputed from the state).",
         "",
-        "| seed | vertices | status | checked | placement | lifting steps | y* / W | CPU (s) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
-    for r in rows:
-        lines.append(
-            f"| {r['seed']} | {r.get('vertices', '-')} | {r['status']} | "
-            f"{_fmt(r.get('checked'), '')} | {r.get('placement') or '-'} | "
-            f"{r.get('lifting_steps', '-')} | {_fmt(r.get('grip'), '.3f')} | "
-            f"{_fmt(r.get('cpu'), '.1f')} |"
-        )
-    lines += ["", "| outcome | shapes |", "| --- | --- |"]
-    lines += [f"| {k} | {v} |" for k, v in sorted(counts.items())]
-    return "\n".join(lines) + "\n"
+    body += table(
+        [
+            "seed",
+            "vertices",
+            "status",
+            "checked",
+            "placement",
+            "lifting steps",
+            "y* / W",
+            "CPU (s)",
+        ],
+        [
+            [
+                r["seed"],
+                r.get("vertices", "-"),
+                r["status"],
+                _fmt(r.get("checked"), ""),
+                r.get("placement") or "-",
+                r.get("lifting_steps", "-"),
+                _fmt(r.get("grip"), ".3f"),
+                _fmt(r.get("cpu"), ".1f"),
+            ]
+            for r in rows
+        ],
+        align="rrlllrrr",
+    )
+    body += ["", *table(["outcome", "shapes"], sorted(counts.items()))]
+    return body
+
+
+def run(
+    out: Path,
+    seed: int = 0,
+    shapes: int = 12,
+    timeout: float = 300.0,
+    workers: int = 1,
+) -> Path:
+    """Plan ``shapes`` random shapes from ``seed`` on, ``workers`` at a time; write the page."""
+    seeds = range(seed, seed + shapes)
+    with ThreadPoolExecutor(workers) as pool:
+        rows = list(pool.map(lambda s: _run(s, timeout), seeds))
+    return write(out, "Scripted planner on random shapes", report(rows, timeout))
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--shapes", type=int, default=20)
-    ap.add_argument("--timeout", type=float, default=600.0, help="wall seconds a plan")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--shapes", type=int, default=12)
+    ap.add_argument("--timeout", type=float, default=300.0, help="wall seconds a plan")
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="plans at a time (CPU time is "
+        "reported per plan, so more workers only share the cores)",
+    )
     ap.add_argument("--out", type=Path, default=RESULTS / "planner_shapes.md")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # worker: plan one shape
     args = ap.parse_args(argv)
@@ -122,13 +160,8 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--{name} must be >= 1, got {getattr(args, name)}")
     if not args.timeout > 0:
         ap.error(f"--timeout must be > 0, got {args.timeout}")
-    seeds = range(args.seed, args.seed + args.shapes)
-    with ThreadPoolExecutor(args.workers) as pool:
-        rows = list(pool.map(lambda s: _run(s, args.timeout), seeds))
-    text = report(rows, args.timeout)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
+    page = run(args.out, args.seed, args.shapes, args.timeout, args.workers)
+    print(page.read_text())
     return 0
 
 

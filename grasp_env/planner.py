@@ -668,7 +668,13 @@ def grip_curves(sim: Simulator, state: State, half_width: float = 0.15, n: int =
 # ---------------------------------------------------------------------- the whole plan
 #: Finger openings (rad) from the placement's finger angles tried by :func:`approach_path`
 #: for the final descent, and the margin (palm widths) it keeps from the object in transit.
-APPROACH_OPENINGS = (0.3, 0.6, 0.15, 1.0, 0.0)
+#: A negative opening closes the finger further: the tip of a finger turned inward past the
+#: vertical rises, where opening it would swing the tip down into the support.
+APPROACH_OPENINGS = (0.3, 0.6, 0.15, 1.0, 0.0, -0.3, -0.6)
+#: Which fingers are opened by those amounts for the descent: both, or one alone (a finger
+#: whose tip rests on the support at the target, turned past the vertical, would swing its
+#: tip into the support if opened).
+APPROACH_OPEN_FINGERS = (np.array([1.0, 1.0]), np.array([1.0, 0.0]), np.array([0.0, 1.0]))
 APPROACH_MARGIN = 0.02
 #: Path resolution of the clearance check, in palm widths and radians.
 APPROACH_RESOLUTION = 0.005
@@ -689,11 +695,13 @@ def approach_path(sim: Simulator, state: State, target: np.ndarray) -> list[np.n
     pre-liftoff hand ``target``, as hand configurations reached by straight-line moves.
 
     The fingers open to their limits, the palm rises clear of the object, moves and turns to
-    above the target (along the world vertical or the target palm's normal) with the fingers
-    opened a little from the target's, descends to the target palm pose, and the fingers close
-    to the target angles. The first such path that the clearance check and then the simulator
-    find free (the object does not move and the hand reaches ``target``) is returned, without
-    the start configuration; None if there is none.
+    above the target with both fingers, or one, opened a little from the target's (closing
+    them on the way or once above), descends to the target palm pose (along the world
+    vertical, the target palm's normal, or a finger's axis towards its tip: a fingertip slides
+    into a corner under an overhang), and the fingers close to the target angles. The first
+    such path that the clearance check and then the simulator find free (the object does not
+    move and the hand reaches ``target``) is returned, without the start configuration; None
+    if there is none.
     """
     scene = sim.scene
     w = scene.palm.width
@@ -706,37 +714,93 @@ def approach_path(sim: Simulator, state: State, target: np.ndarray) -> list[np.n
     opened[3] = lim[0, 0] + 0.05
     opened[4] = lim[1, 1] - 0.05
     th = float(target[2])
-    for delta in APPROACH_OPENINGS:
-        fingers = np.clip(target[3:] + np.array([-delta, delta]), lim[:, 0], lim[:, 1])
-        for direction in (np.array([0.0, 1.0]), np.array([-math.sin(th), math.cos(th)])):
-            low = target.copy()
-            low[3:] = fingers
-            above = None
-            for s in np.arange(0.0, 3.0 * w, 0.02 * w):
-                h = low.copy()
-                h[:2] += s * direction
-                lowest = min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h))
-                if lowest > top + APPROACH_MARGIN * w:
-                    above = h
-                    break
-            if above is None:
+    for delta, which in itertools.product(APPROACH_OPENINGS, APPROACH_OPEN_FINGERS):
+        if delta == 0.0 and which is not APPROACH_OPEN_FINGERS[0]:
+            continue  # nothing opened: one candidate
+        opening = delta * np.array([-1.0, 1.0]) * which
+        fingers = np.clip(target[3:] + opening, lim[:, 0], lim[:, 1])
+        low = target.copy()
+        low[3:] = fingers
+        joints = kin.body_poses_W(scene, low)[1:3, :2]
+        axes = joints - kin.fingertips_W(scene, low)
+        for direction in (
+            np.array([0.0, 1.0]),
+            np.array([-math.sin(th), math.cos(th)]),
+            *(a / np.linalg.norm(a) for a in axes if a[1] > 0.0),
+        ):
+            # Opened fingers may dip into the support or the object at the target palm pose:
+            # then they open a little higher up and close as the palm comes down.
+            near = _first_clear(scene, low, direction, q_obj, 10 * tol)
+            above = _clear_above(scene, low, direction, top + APPROACH_MARGIN * w)
+            if near is None or above is None:
                 continue
             raised = opened.copy()
             raised[1] = max(above[1], opened[1])
-            path = []
-            for h in (opened, raised, above, low, target.copy()):
-                if not path or np.abs(h - path[-1]).max() > 0.0:
-                    path.append(h)
-            a = start
-            ok = True
-            for b in path:
-                ok = _segment_clear(scene, a, b, q_obj, tol if b is path[-1] else 10 * tol)
-                if not ok:
-                    break
-                a = b
-            if ok and _path_moves_nothing(sim, state, path):
-                return path
+            # The fingers close to their descent angles during the transit, or once the palm
+            # is above the target (higher up if their sweep needs it).
+            for path in (
+                [opened, raised, above, near, target.copy()],
+                _close_above(scene, opened, raised, above, near, target, direction, q_obj, tol),
+            ):
+                if path is None:
+                    continue
+                path = [h for i, h in enumerate(path) if i == 0 or np.any(h != path[i - 1])]
+                if _path_clear(scene, start, path, q_obj, tol) and _path_moves_nothing(
+                    sim, state, path
+                ):
+                    return path
     return None
+
+
+def _first_clear(scene, low: np.ndarray, direction: np.ndarray, q_obj, tol: float):
+    """``low`` moved along ``direction`` until the hand is clear of the object and the
+    support; None within half a palm width."""
+    w = scene.palm.width
+    for s in np.arange(0.0, 0.5 * w, 0.01 * w):
+        h = low.copy()
+        h[:2] += s * direction
+        if _hand_clear(scene, h, q_obj, tol):
+            return h
+    return None
+
+
+def _clear_above(scene, low: np.ndarray, direction: np.ndarray, height: float):
+    """``low`` moved along ``direction`` until the whole hand is above ``height``; None
+    within 3 palm widths."""
+    w = scene.palm.width
+    for s in np.arange(0.0, 3.0 * w, 0.02 * w):
+        h = low.copy()
+        h[:2] += s * direction
+        if min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h)) > height:
+            return h
+    return None
+
+
+def _close_above(scene, opened, raised, above, low, target, direction, q_obj, tol) -> list | None:
+    """The transit with the fingers still open, closing them above the target: ``above`` is
+    raised along ``direction`` until that closing sweep is clear; None if it never is."""
+    w = scene.palm.width
+    for s in np.arange(0.0, 3.0 * w, 0.05 * w):
+        closed = above.copy()
+        closed[:2] += s * direction
+        still_open = closed.copy()
+        still_open[3:] = opened[3:]
+        if _segment_clear(scene, still_open, closed, q_obj, 10 * tol):
+            lifted = raised.copy()
+            lifted[1] = max(raised[1], closed[1])
+            return [opened, lifted, still_open, closed, low, target.copy()]
+    return None
+
+
+def _path_clear(scene, start: np.ndarray, path: list, q_obj: np.ndarray, tol: float) -> bool:
+    """Every straight segment of ``path`` from ``start`` passes the clearance check (the
+    last, onto the target, with the tight tolerance: the target touches the object)."""
+    a = start
+    for b in path:
+        if not _segment_clear(scene, a, b, q_obj, tol if b is path[-1] else 10 * tol):
+            return False
+        a = b
+    return True
 
 
 def _path_moves_nothing(sim: Simulator, state: State, path: list[np.ndarray]) -> bool:

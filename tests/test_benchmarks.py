@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from benchmarks import memory, profile_step, throughput, work_precision
+from benchmarks import memory, planner_shapes, profile_step, throughput, work_precision
 
 
 @pytest.mark.parametrize(
@@ -37,3 +37,11 @@ def test_profile_baseline_columns(tmp_path):
     assert "after / before" in second.read_text()
     record = json.loads(first.with_suffix(".json").read_text())
     assert set(profile_step.CONFIGS) <= set(record)
+
+
+def test_planner_shapes_page_holds_each_plan(tmp_path):
+    page = planner_shapes.run(tmp_path / "shapes.md", seed=3, shapes=1, timeout=120)
+    text = page.read_text()
+    assert text.startswith("# ") and "Machine:" in text
+    row = next(line for line in text.splitlines() if line.startswith("| 3 |"))
+    assert "crash" not in row and "timeout" not in row  # the worker process ran the plan

@@ -13,6 +13,7 @@ import grasp_env
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env import planner
+from grasp_env.envs.shapes import random_shape_scene
 
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
 #: Scenes the planner does not lift yet (wedged between the fingertips from every placement
@@ -167,6 +168,31 @@ def test_approach_path_reaches_a_tilted_placement_without_touching_the_object():
             assert poly[:, 1].min() >= -1e-9
     assert np.allclose(state.hand, target.hand, atol=1e-9)
     assert {"finger1", "finger2"} <= {c.body for c in state.contacts}
+
+
+@pytest.mark.parametrize("seed", [1, 7])
+def test_approach_path_slides_a_fingertip_under_an_overhang(seed):
+    # Random shapes whose tipping placement turns both fingers inward past the vertical, a
+    # fingertip at the support contact under the object's overhanging side: opening that
+    # finger for the descent would swing its tip into the support, and a vertical descent
+    # with the placement's angles would cut through the overhang.
+    scene = random_shape_scene(np.random.default_rng(seed), grasp_env.load_scene("fig13"))
+    sim = grasp_env.Simulator(scene)
+    target, _ = planner.tipping_placement(sim)
+    q1, q2 = target.finger_angles
+    assert q1 > -np.pi / 2 and q2 < -np.pi / 2  # both fingers turned inward
+    state = sim.reset()
+    path = planner.approach_path(sim, state, target.hand)
+    assert path is not None and np.array_equal(path[-1], target.hand)
+    start = state.object_pose.copy()
+    for h in path:  # replayed independently: the object never moves, the hand stays clear
+        state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
+        assert np.allclose(state.object_pose, start, atol=1e-9)
+        assert not state.jammed and not state.hand_blocked
+        for poly in kin.hand_polygons_W(sim.scene, state.hand):
+            assert poly[:, 1].min() >= -1e-9
+    assert np.allclose(state.hand, target.hand, atol=1e-9)
+    assert {c.body for c in target.contacts} <= {c.body for c in state.contacts}
 
 
 def test_segment_distance_matches_a_dense_sampling():
