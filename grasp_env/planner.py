@@ -580,9 +580,12 @@ def adjust_grip(
     halved until ``y*`` falls below its value at the ``eps`` step (which is taken otherwise).
     At a five-contact configuration every four-contact branch that keeps form closure is
     evaluated in both directions and the best one continues. The hand goes to the new
-    configuration by one simulated straight-line move (the plan then replays exactly), kept
-    if the grasp stays closed off the support and ``y*`` falls. Stops when no branch lowers
-    ``y*`` at a step of ``eps`` either way, or no such move keeps the grasp.
+    configuration by one simulated straight-line move, or two through a via point where the
+    branch curves away from the chord (:func:`_follow_branch`; the via step, noted ``"via"``,
+    may leave form closure for a moment), kept if the grasp ends closed off the support and
+    ``y*`` falls (the plan then replays exactly). Stops when no branch lowers ``y*`` at a
+    step of ``eps`` either way, or no such move keeps the grasp (the plan's message says
+    which).
     """
     y = mech.grip_objective(state)
     z = np.array([*state.object_pose, state.hand[4]])
@@ -606,25 +609,59 @@ def adjust_grip(
                         break
                     step *= 0.5
                 candidates.append((*found, br))
-        # The hand reaches the chosen configuration by one straight-line move (so that the
-        # plan replays through the simulator and the env); keep the move only if the grasp
-        # stays closed off the support and y* falls.
+        # The hand reaches the chosen configuration by simulated straight-line moves (so that
+        # the plan replays through the simulator and the env); keep them only if the grasp
+        # ends closed off the support with y* lower.
         for _, q1_new, z_new, br in sorted(candidates, key=lambda c: c[0]):
-            target = br.config(q1_new, z_new)
-            moved = _try_move(sim, state, palm=target[:3], fingers=target[3:])
-            y_moved = (
-                mech.grip_objective(moved) if moved is not None and _grasped(moved) else math.inf
-            )
-            if y_moved < y:
+            moves = _follow_branch(sim, state, br.config(q1_new, z_new), y)
+            if moves is not None:
                 break
         else:
-            plan.message = "form closure reached; y* at a local minimum"
+            plan.message = (
+                "form closure reached; y* falls along a four-contact branch, but the hand "
+                "cannot follow it"
+                if candidates
+                else "form closure reached; y* at a local minimum"
+            )
             return state
-        state, y = moved, y_moved
+        for via in moves[:-1]:
+            plan.steps.append(PlanStep("grip adjustment", via, _grip_if_closed(via), "via"))
+        state = moves[-1]
+        y = mech.grip_objective(state)
         z, q1 = np.array([*state.object_pose, state.hand[4]]), float(state.hand[3])
         plan.steps.append(PlanStep("grip adjustment", state, y, _event_note(state)))
     plan.message = f"grip adjustment stopped after {max_steps} steps"
     return state
+
+
+def _follow_branch(sim: Simulator, state: State, target: np.ndarray, y: float) -> list | None:
+    """States of simulated moves from ``state`` to ``target`` (a configuration on a
+    four-contact branch) ending closed off the support with ``y*`` below ``y``; None if there
+    are none.
+
+    One straight-line move first. Where the branch curves away from that chord, the chord
+    leaves the hand configurations in which the object fits (the first move jams at once):
+    then through a via point, the chord's middle with one finger opened by the step of
+    finger 1 (finger 1 first), from which the hand closes onto the branch again.
+    """
+    direct = _try_move(sim, state, palm=target[:3], fingers=target[3:])
+    if _closed_below(direct, y):
+        return [direct]
+    step = abs(float(target[3] - state.hand[3]))
+    for opening in ((-step, 0.0), (0.0, step)):  # finger 1 opens as q1 falls, 2 as q2 rises
+        mid = 0.5 * (state.hand + target)
+        mid[3:] += opening
+        via = _try_move(sim, state, palm=mid[:3], fingers=mid[3:])
+        if via is None or not _off_support(via):
+            continue
+        end = _try_move(sim, via, palm=target[:3], fingers=target[3:])
+        if _closed_below(end, y):
+            return [via, end]
+    return None
+
+
+def _closed_below(state: State | None, y: float) -> bool:
+    return state is not None and _grasped(state) and mech.grip_objective(state) < y
 
 
 def grip_curves(sim: Simulator, state: State, half_width: float = 0.15, n: int = 61) -> list[dict]:
