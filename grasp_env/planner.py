@@ -732,61 +732,70 @@ def approach_path(sim: Simulator, state: State, target: np.ndarray) -> list[np.n
     pre-liftoff hand ``target``, as hand configurations reached by straight-line moves.
 
     The fingers open to their limits, the palm rises clear of the object, moves and turns to
-    above the target with both fingers, or one, opened a little from the target's (closing
-    them on the way or once above), descends to the target palm pose (along the world
-    vertical, the target palm's normal, or a finger's axis towards its tip: a fingertip slides
-    into a corner under an overhang), and the fingers close to the target angles. The first
-    such path that the clearance check and then the simulator find free (the object does not
-    move and the hand reaches ``target``) is returned, without the start configuration; None
-    if there is none.
+    above the target with the fingers opened a little from the target's, descends to the
+    target palm pose, and the fingers close to the target angles (:func:`_approach_paths`
+    lists the variants, simplest first). The first path that the clearance check and then
+    the simulator find free (the object does not move and the hand reaches ``target``) is
+    returned, without the start configuration; None if there is none.
     """
-    scene = sim.scene
-    w = scene.palm.width
     q_obj = state.object_pose
+    tol = 1e-6 * sim.size
+    for path in _approach_paths(sim.scene, state.hand, target, q_obj, tol):
+        path = [h for i, h in enumerate(path) if i == 0 or np.any(h != path[i - 1])]
+        if _path_clear(sim.scene, state.hand, path, q_obj, tol) and _path_moves_nothing(
+            sim, state, path
+        ):
+            return path
+    return None
+
+
+def _approach_paths(scene, start: np.ndarray, target: np.ndarray, q_obj: np.ndarray, tol: float):
+    """Candidate approach paths. First the simple ones: both fingers opened by each of
+    ``APPROACH_OPENINGS`` (>= 0), descending along the world vertical or the target palm's
+    normal straight onto the target palm pose. Then the refined ones: one finger opened alone
+    or closed further, the palm also descending along a finger's axis towards its tip (a
+    fingertip slides into a corner under an overhang), opened fingers that would dip into the
+    support or the object at the target palm pose opened a little higher up (closing as the
+    palm comes down), and the fingers closed once the palm is above the target rather than
+    on the way."""
+    w = scene.palm.width
     lim = scene.joint_limits
     top = float(geo.transform(q_obj, scene.object.vertices_B)[:, 1].max())
-    tol = 1e-6 * sim.size
-    start = state.hand.copy()
     opened = start.copy()
     opened[3] = lim[0, 0] + 0.05
     opened[4] = lim[1, 1] - 0.05
     th = float(target[2])
-    for delta, which in itertools.product(APPROACH_OPENINGS, APPROACH_OPEN_FINGERS):
-        if delta == 0.0 and which is not APPROACH_OPEN_FINGERS[0]:
-            continue  # nothing opened: one candidate
-        opening = delta * np.array([-1.0, 1.0]) * which
-        fingers = np.clip(target[3:] + opening, lim[:, 0], lim[:, 1])
-        low = target.copy()
-        low[3:] = fingers
-        joints = kin.body_poses_W(scene, low)[1:3, :2]
-        axes = joints - kin.fingertips_W(scene, low)
-        for direction in (
-            np.array([0.0, 1.0]),
-            np.array([-math.sin(th), math.cos(th)]),
-            *(a / np.linalg.norm(a) for a in axes if a[1] > 0.0),
-        ):
-            # Opened fingers may dip into the support or the object at the target palm pose:
-            # then they open a little higher up and close as the palm comes down.
-            near = _first_clear(scene, low, direction, q_obj, 10 * tol)
-            above = _clear_above(scene, low, direction, top + APPROACH_MARGIN * w)
-            if near is None or above is None:
-                continue
-            raised = opened.copy()
-            raised[1] = max(above[1], opened[1])
-            # The fingers close to their descent angles during the transit, or once the palm
-            # is above the target (higher up if their sweep needs it).
-            for path in (
-                [opened, raised, above, near, target.copy()],
-                _close_above(scene, opened, raised, above, near, target, direction, q_obj, tol),
-            ):
-                if path is None:
+    both = APPROACH_OPEN_FINGERS[0]
+    simple = [(d, both) for d in APPROACH_OPENINGS if d >= 0.0]
+    refined = [
+        (d, which)
+        for d, which in itertools.product(APPROACH_OPENINGS, APPROACH_OPEN_FINGERS)
+        if d != 0.0 or which is both
+    ]
+    for is_refined, combos in ((False, simple), (True, refined)):
+        for delta, which in combos:
+            low = target.copy()
+            low[3:] = np.clip(target[3:] + delta * np.array([-1.0, 1.0]) * which, *lim.T)
+            directions = [np.array([0.0, 1.0]), np.array([-math.sin(th), math.cos(th)])]
+            if is_refined:
+                axes = kin.body_poses_W(scene, low)[1:3, :2] - kin.fingertips_W(scene, low)
+                directions += [a / np.linalg.norm(a) for a in axes if a[1] > 0.0]
+            for k, direction in enumerate(directions):
+                near = _first_clear(scene, low, direction, q_obj, 10 * tol) if is_refined else low
+                above = _clear_above(scene, low, direction, top + APPROACH_MARGIN * w)
+                if near is None or above is None:
                     continue
-                path = [h for i, h in enumerate(path) if i == 0 or np.any(h != path[i - 1])]
-                if _path_clear(scene, start, path, q_obj, tol) and _path_moves_nothing(
-                    sim, state, path
-                ):
-                    return path
-    return None
+                raised = opened.copy()
+                raised[1] = max(above[1], opened[1])
+                tried = which is both and delta >= 0.0 and k < 2 and np.array_equal(near, low)
+                if not (is_refined and tried):
+                    yield [opened, raised, above, near, target.copy()]
+                if is_refined:
+                    closing = _close_above(
+                        scene, opened, raised, above, near, target, direction, q_obj, tol
+                    )
+                    if closing is not None:
+                        yield closing
 
 
 def _first_clear(scene, low: np.ndarray, direction: np.ndarray, q_obj, tol: float):
