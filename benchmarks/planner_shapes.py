@@ -146,8 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         "--workers",
         type=int,
         default=1,
-        help="plans at a time (CPU time is "
-        "reported per plan, so more workers only share the cores)",
+        help="plans at a time (CPU time is reported per plan: more workers share the cores)",
     )
     ap.add_argument("--out", type=Path, default=RESULTS / "planner_shapes.md")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # worker: plan one shape

@@ -613,8 +613,8 @@ def adjust_grip(
         # the plan replays through the simulator and the env); keep them only if the grasp
         # ends closed off the support with y* lower.
         for _, q1_new, z_new, br in sorted(candidates, key=lambda c: c[0]):
-            moves = _follow_branch(sim, state, br.config(q1_new, z_new), y)
-            if moves is not None:
+            moves, y_moved = _follow_branch(sim, state, br.config(q1_new, z_new), y)
+            if moves:
                 break
         else:
             plan.message = (
@@ -626,18 +626,19 @@ def adjust_grip(
             return state
         for via in moves[:-1]:
             plan.steps.append(PlanStep("grip adjustment", via, _grip_if_closed(via), "via"))
-        state = moves[-1]
-        y = mech.grip_objective(state)
+        state, y = moves[-1], y_moved
         z, q1 = np.array([*state.object_pose, state.hand[4]]), float(state.hand[3])
         plan.steps.append(PlanStep("grip adjustment", state, y, _event_note(state)))
     plan.message = f"grip adjustment stopped after {max_steps} steps"
     return state
 
 
-def _follow_branch(sim: Simulator, state: State, target: np.ndarray, y: float) -> list | None:
+def _follow_branch(
+    sim: Simulator, state: State, target: np.ndarray, y: float
+) -> tuple[list[State], float]:
     """States of simulated moves from ``state`` to ``target`` (a configuration on a
-    four-contact branch) ending closed off the support with ``y*`` below ``y``; None if there
-    are none.
+    four-contact branch) ending closed off the support with ``y*`` below ``y``, and that
+    ``y*``; ``([], inf)`` if there are none.
 
     One straight-line move first. Where the branch curves away from that chord, the chord
     leaves the hand configurations in which the object fits (the first move jams at once):
@@ -645,8 +646,8 @@ def _follow_branch(sim: Simulator, state: State, target: np.ndarray, y: float) -
     finger 1 (finger 1 first), from which the hand closes onto the branch again.
     """
     direct = _try_move(sim, state, palm=target[:3], fingers=target[3:])
-    if _closed_below(direct, y):
-        return [direct]
+    if (y_new := _closed_grip(direct)) < y:
+        return [direct], y_new
     step = abs(float(target[3] - state.hand[3]))
     for opening in ((-step, 0.0), (0.0, step)):  # finger 1 opens as q1 falls, 2 as q2 rises
         mid = 0.5 * (state.hand + target)
@@ -655,13 +656,14 @@ def _follow_branch(sim: Simulator, state: State, target: np.ndarray, y: float) -
         if via is None or not _off_support(via):
             continue
         end = _try_move(sim, via, palm=target[:3], fingers=target[3:])
-        if _closed_below(end, y):
-            return [via, end]
-    return None
+        if (y_new := _closed_grip(end)) < y:
+            return [via, end], y_new
+    return [], math.inf
 
 
-def _closed_below(state: State | None, y: float) -> bool:
-    return state is not None and _grasped(state) and mech.grip_objective(state) < y
+def _closed_grip(state: State | None) -> float:
+    """``y*`` of a grasp closed off the support; inf for anything else."""
+    return mech.grip_objective(state) if state is not None and _grasped(state) else math.inf
 
 
 def grip_curves(sim: Simulator, state: State, half_width: float = 0.15, n: int = 61) -> list[dict]:
@@ -740,8 +742,13 @@ def approach_path(sim: Simulator, state: State, target: np.ndarray) -> list[np.n
     """
     q_obj = state.object_pose
     tol = 1e-6 * sim.size
+    tried = set()
     for path in _approach_paths(sim.scene, state.hand, target, q_obj, tol):
         path = [h for i, h in enumerate(path) if i == 0 or np.any(h != path[i - 1])]
+        key = np.concatenate(path).tobytes()
+        if key in tried:
+            continue
+        tried.add(key)
         if _path_clear(sim.scene, state.hand, path, q_obj, tol) and _path_moves_nothing(
             sim, state, path
         ):
@@ -750,17 +757,17 @@ def approach_path(sim: Simulator, state: State, target: np.ndarray) -> list[np.n
 
 
 def _approach_paths(scene, start: np.ndarray, target: np.ndarray, q_obj: np.ndarray, tol: float):
-    """Candidate approach paths. First the simple ones: both fingers opened by each of
-    ``APPROACH_OPENINGS`` (>= 0), descending along the world vertical or the target palm's
-    normal straight onto the target palm pose. Then the refined ones: one finger opened alone
-    or closed further, the palm also descending along a finger's axis towards its tip (a
-    fingertip slides into a corner under an overhang), opened fingers that would dip into the
-    support or the object at the target palm pose opened a little higher up (closing as the
-    palm comes down), and the fingers closed once the palm is above the target rather than
-    on the way."""
+    """Candidate approach paths (possibly repeated). First the simple ones: both fingers
+    opened by each of ``APPROACH_OPENINGS`` (>= 0), descending along the world vertical or the
+    target palm's normal straight onto the target palm pose. Then the refined ones: one finger
+    opened alone or closed further, the palm also descending along a finger's axis towards its
+    tip (a fingertip slides into a corner under an overhang), opened fingers that would dip
+    into the support or the object at the target palm pose opened a little higher up (closing
+    as the palm comes down), and the fingers closed once the palm is above the target rather
+    than on the way."""
     w = scene.palm.width
     lim = scene.joint_limits
-    top = float(geo.transform(q_obj, scene.object.vertices_B)[:, 1].max())
+    top = float(geo.transform(q_obj, scene.object.vertices_B)[:, 1].max()) + APPROACH_MARGIN * w
     opened = start.copy()
     opened[3] = lim[0, 0] + 0.05
     opened[4] = lim[1, 1] - 0.05
@@ -770,7 +777,7 @@ def _approach_paths(scene, start: np.ndarray, target: np.ndarray, q_obj: np.ndar
     refined = [
         (d, which)
         for d, which in itertools.product(APPROACH_OPENINGS, APPROACH_OPEN_FINGERS)
-        if d != 0.0 or which is both
+        if d != 0.0 or which is both  # nothing opened: one candidate
     ]
     for is_refined, combos in ((False, simple), (True, refined)):
         for delta, which in combos:
@@ -780,62 +787,51 @@ def _approach_paths(scene, start: np.ndarray, target: np.ndarray, q_obj: np.ndar
             if is_refined:
                 axes = kin.body_poses_W(scene, low)[1:3, :2] - kin.fingertips_W(scene, low)
                 directions += [a / np.linalg.norm(a) for a in axes if a[1] > 0.0]
-            for k, direction in enumerate(directions):
-                near = _first_clear(scene, low, direction, q_obj, 10 * tol) if is_refined else low
-                above = _clear_above(scene, low, direction, top + APPROACH_MARGIN * w)
+            for direction in directions:
+                near = low
+                if is_refined:
+                    near = _slide(low, direction, 0.5 * w, 0.01 * w, _clear_of(scene, q_obj, tol))
+                above = _slide(low, direction, 3.0 * w, 0.02 * w, _above(scene, top))
                 if near is None or above is None:
                     continue
                 raised = opened.copy()
                 raised[1] = max(above[1], opened[1])
-                tried = which is both and delta >= 0.0 and k < 2 and np.array_equal(near, low)
-                if not (is_refined and tried):
-                    yield [opened, raised, above, near, target.copy()]
-                if is_refined:
-                    closing = _close_above(
-                        scene, opened, raised, above, near, target, direction, q_obj, tol
-                    )
-                    if closing is not None:
-                        yield closing
+                yield [opened, raised, above, near, target.copy()]
+                if not is_refined:
+                    continue
+                # close the fingers above the target, raised until their sweep is clear
+                sweep_clear = _sweep_clear(scene, opened[3:], q_obj, tol)
+                closed = _slide(above, direction, 3.0 * w, 0.05 * w, sweep_clear)
+                if closed is not None:
+                    lifted = raised.copy()
+                    lifted[1] = max(raised[1], closed[1])
+                    still_open = np.r_[closed[:3], opened[3:]]
+                    yield [opened, lifted, still_open, closed, near, target.copy()]
 
 
-def _first_clear(scene, low: np.ndarray, direction: np.ndarray, q_obj, tol: float):
-    """``low`` moved along ``direction`` until the hand is clear of the object and the
-    support; None within half a palm width."""
-    w = scene.palm.width
-    for s in np.arange(0.0, 0.5 * w, 0.01 * w):
-        h = low.copy()
-        h[:2] += s * direction
-        if _hand_clear(scene, h, q_obj, tol):
-            return h
+def _slide(h: np.ndarray, direction: np.ndarray, length: float, step: float, accept):
+    """The first configuration ``h`` with the palm moved along ``direction`` by a multiple of
+    ``step`` (0 first, below ``length``) that ``accept`` takes; None if there is none."""
+    for s in np.arange(0.0, length, step):
+        moved = h.copy()
+        moved[:2] += s * direction
+        if accept(moved):
+            return moved
     return None
 
 
-def _clear_above(scene, low: np.ndarray, direction: np.ndarray, height: float):
-    """``low`` moved along ``direction`` until the whole hand is above ``height``; None
-    within 3 palm widths."""
-    w = scene.palm.width
-    for s in np.arange(0.0, 3.0 * w, 0.02 * w):
-        h = low.copy()
-        h[:2] += s * direction
-        if min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h)) > height:
-            return h
-    return None
+def _clear_of(scene, q_obj: np.ndarray, tol: float):
+    return lambda h: _hand_clear(scene, h, q_obj, tol)
 
 
-def _close_above(scene, opened, raised, above, low, target, direction, q_obj, tol) -> list | None:
-    """The transit with the fingers still open, closing them above the target: ``above`` is
-    raised along ``direction`` until that closing sweep is clear; None if it never is."""
-    w = scene.palm.width
-    for s in np.arange(0.0, 3.0 * w, 0.05 * w):
-        closed = above.copy()
-        closed[:2] += s * direction
-        still_open = closed.copy()
-        still_open[3:] = opened[3:]
-        if _segment_clear(scene, still_open, closed, q_obj, 10 * tol):
-            lifted = raised.copy()
-            lifted[1] = max(raised[1], closed[1])
-            return [opened, lifted, still_open, closed, low, target.copy()]
-    return None
+def _sweep_clear(scene, opened_fingers: np.ndarray, q_obj: np.ndarray, tol: float):
+    """Whether the fingers close clear from ``opened_fingers`` to ``h``'s angles, the palm
+    at ``h``."""
+    return lambda h: _segment_clear(scene, np.r_[h[:3], opened_fingers], h, q_obj, 10 * tol)
+
+
+def _above(scene, height: float):
+    return lambda h: min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h)) > height
 
 
 def _path_clear(scene, start: np.ndarray, path: list, q_obj: np.ndarray, tol: float) -> bool:
