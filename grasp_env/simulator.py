@@ -40,6 +40,11 @@ from grasp_env.width import object_width
 
 #: Largest contact force, in object weights, that counts as holding the object.
 MAX_FORCE = 1e6
+#: Chatter guard: a contact lost more than CHATTER times in a row, each time less than
+#: CHATTER_DS of the move after the last, is dropped from the active set (as at a loss right
+#: at the current point) instead of being re-planned in again.
+CHATTER = 3
+CHATTER_DS = 1e-4
 
 
 class SimulationError(RuntimeError):
@@ -256,6 +261,7 @@ class Simulator:
         losing = None  # (E, v) of a plan dropped for a negative force at this s
         override, forced = None, set()  # a plan with a touching contact forced active
         carry = None  # (E, v) kept from an accepted step whose active set stays valid
+        lost_run = (None, 0)  # contact lost at the last events in a row, and how often
         for _ in range(self.max_iterations):
             h = h0 + s * dh
             determined = carry is not None
@@ -317,7 +323,12 @@ class Simulator:
                 banned, losing, forced = set(), None, set()
                 continue
             s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
-            if s_star - s < s_eps:
+            lost = event.contacts[0] if event.kind == "lost_contact" and event.contacts else None
+            lost_run = (lost, lost_run[1] + 1 if lost == lost_run[0] else 1)
+            # Chatter: the re-planned active set keeps a contact whose force falls to zero
+            # again within a hair's breadth of s; it cannot stay active, as at s itself.
+            chatter = lost is not None and lost_run[1] > CHATTER and s_star - s < CHATTER_DS
+            if s_star - s < s_eps or chatter:
                 key = event.contacts[0] if event.contacts else None
                 if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and key is not None:
                     if key not in banned:
@@ -788,6 +799,10 @@ class Simulator:
                         break
                     if at_event and q_new[1] <= q[1] and np.any(q_new != q):
                         break  # a nearly flat way down that reaches a new contact
+                    if at_event and q_new is q:
+                        # No admissible point along d at all: the bisection already tried
+                        # every step a halved d would (d/2, d/4, ... down to rounding).
+                        break
                     d = 0.5 * d
                 if best is None or q_new[1] < best[1]:
                     best, best_event = q_new, at_event
@@ -854,6 +869,8 @@ class Simulator:
         lo, hi, q_lo = 0.0, 1.0, q
         for _ in range(200):
             mid = 0.5 * (lo + hi)
+            if hi - lo < 1e-16 or not lo < mid < hi:
+                break  # located to rounding (near 1 doubles are 1.1e-16 apart)
             q_mid = at(mid)
             if q_mid is None:
                 hi = mid
@@ -865,8 +882,6 @@ class Simulator:
                 return q_mid, True
             else:
                 lo, q_lo = mid, q_mid
-            if hi - lo < 1e-16:
-                break
         return q_lo, True
 
     def _geometry_violation(self, q, h, E) -> float:

@@ -851,6 +851,56 @@ def test_one_move_equals_ten_through_events(
     assert contact_set(one) == contact_set(ten)
 
 
+def test_contact_lost_again_and_again_is_dropped() -> None:
+    """Regression (found by the planner's exploratory search on tall_rectangle): the object
+    leans on finger 1's tip, finger 2's tip and the support while the palm turns. At
+    s = 0.5 finger 2's force reaches zero; the re-planned active set kept the contact, whose
+    force fell to zero again 5e-7 further on, and so on: 10000 increments and 500 s later the
+    move raised SimulationError 'no progress'. The chatter guard drops the contact. The
+    result must agree with the same move cut in 50 pieces (each of which crosses the point
+    with fewer, longer increments)."""
+    sim = Simulator(scene_of("tall_rectangle"), max_iterations=MAX_ITERATIONS)
+    pose = np.array([0.01998986868443757, 0.25615743936771634, -0.09837377974016227])
+    hand = np.array([0.16, 0.77, -0.12, -0.9547500768881969, -2.373256222405706])
+    start = sim.settle(pose, hand)
+    assert contact_set(start) == [("finger1", "tip"), ("finger2", "tip"), ("support", "edge")]
+    target = hand.copy()
+    target[2] = -0.16
+    one = sim.move_hand(start, palm=target[:3], fingers=target[3:])
+    assert_invariants(one, tol_of(sim), "turned palm")
+    assert "lost_contact" in [e.kind for e in one.events]
+    fifty = split_move(sim, start, target, 50)
+    np.testing.assert_allclose(one.hand, fifty.hand, atol=1e-12)
+    np.testing.assert_allclose(one.object_pose, fifty.object_pose, atol=FOLD_POSE_TOL)
+    assert contact_set(one) == contact_set(fifty)
+
+
+def test_fall_with_no_admissible_step_stops_searching(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Regression (found by the planner's exploratory search): when no point along a fall
+    step solves the contact equations, the step's bisection ran all 200 halvings (its
+    stopping test was skipped on a failed solve), and the fall then halved the step 50 times,
+    each repeating the very same solves (a halved step's points are the old step's
+    bisection points): 10^5 Newton solves and 46-88 s for one hand move. Here every solve
+    fails (patched), for an object in the air: the fall must give up at once, after one
+    bisection down to rounding (53 halvings), leaving the object where it is."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    lifted = start.object_pose + np.array([0.0, 0.1, 0.0])
+    calls = 0
+
+    def failing(self, q0, h, E):
+        nonlocal calls
+        calls += 1
+        return None
+
+    monkeypatch.setattr(Simulator, "_newton", failing)
+    events: list = []
+    q = sim._fall(lifted, start.hand, 0.0, events)
+    np.testing.assert_array_equal(q, lifted)
+    assert [e.kind for e in events] == ["fall_start", "fall_end"]
+    assert 50 <= calls <= 60
+
+
 # ---------------------------------------------------------------------------------------
 # 5. Convergence in contact_tol and max_step
 # ---------------------------------------------------------------------------------------
