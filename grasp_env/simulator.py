@@ -40,11 +40,16 @@ from grasp_env.width import object_width
 
 #: Largest contact force, in object weights, that counts as holding the object.
 MAX_FORCE = 1e6
-#: Chatter guard: a contact lost more than CHATTER times in a row, each time less than
-#: CHATTER_DS of the move after the last, is dropped from the active set (as at a loss right
-#: at the current point) instead of being re-planned in again.
+#: Chatter guard: an event (a contact lost, a jam) located more than CHATTER times in a row,
+#: each time less than CHATTER_DS of the move after the last, is treated as happening at the
+#: current point (a lost contact is dropped from the active set, a jam stops the hand)
+#: instead of creeping on.
 CHATTER = 3
 CHATTER_DS = 1e-4
+#: A move whose path parameter stays within CHATTER_DS for more than STALL increments (events
+#: cycling at one point, e.g. a contact lost and found again and again) cannot be followed:
+#: it raises SimulationError at once, as it would after ``max_iterations``.
+STALL = 200
 
 
 class SimulationError(RuntimeError):
@@ -261,8 +266,15 @@ class Simulator:
         losing = None  # (E, v) of a plan dropped for a negative force at this s
         override, forced = None, set()  # a plan with a touching contact forced active
         carry = None  # (E, v) kept from an accepted step whose active set stays valid
-        lost_run = (None, 0)  # contact lost at the last events in a row, and how often
-        for _ in range(self.max_iterations):
+        run: tuple = (None, 0)  # the event located last, and how often in a row (chatter)
+        mark = (0.0, 0)  # (s, iteration) where s last moved on by more than CHATTER_DS
+        for it in range(self.max_iterations):
+            if s > mark[0] + CHATTER_DS:
+                mark = (s, it)
+            elif it - mark[1] > STALL:
+                raise SimulationError(
+                    f"no progress after {STALL} increments within {CHATTER_DS:g} of s = {s}"
+                )
             h = h0 + s * dh
             determined = carry is not None
             overridden = override is not None
@@ -323,12 +335,14 @@ class Simulator:
                 banned, losing, forced = set(), None, set()
                 continue
             s_star, q_star, event = self._locate(q, s, s + ds, E, v, h0, dh, trigger)
-            lost = event.contacts[0] if event.kind == "lost_contact" and event.contacts else None
-            lost_run = (lost, lost_run[1] + 1 if lost == lost_run[0] else 1)
-            # Chatter: the re-planned active set keeps a contact whose force falls to zero
-            # again within a hair's breadth of s; it cannot stay active, as at s itself.
-            chatter = lost is not None and lost_run[1] > CHATTER and s_star - s < CHATTER_DS
-            if s_star - s < s_eps or chatter:
+            # Chatter: the same event again and again, each within a hair's breadth of the
+            # last (a contact whose force falls to zero again as soon as the re-planned
+            # active set takes it back; an infeasible LP just ahead at a wedge). Treat it as
+            # happening here, at s.
+            near = s_star - s < CHATTER_DS
+            seen = (event.kind, event.contacts)
+            run = (seen, run[1] + 1) if near and seen == run[0] else (seen, 1 if near else 0)
+            if s_star - s < s_eps or run[1] > CHATTER:
                 key = event.contacts[0] if event.contacts else None
                 if event.kind in ("edge_to_tip", "tip_to_edge", "lost_contact") and key is not None:
                     if key not in banned:
