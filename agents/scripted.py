@@ -24,7 +24,9 @@ plans from the env's current state with the planner's lifting and grip-adjustmen
 (palm fixed, so it works with ``palm_control`` False or True) and replays the plan as scaled
 env actions, splitting increments larger than one action into several steps. With
 ``palm_control`` True, when that fails, it moves the palm to the whole planner's placement
-(tilted, for square, heavy_square and triangle) and lifts from there.
+(tilted, for square, heavy_square and triangle) and lifts from there; where no placement
+lifts the object (tall_rectangle), it runs the planner's exploratory lifting with palm
+motion on the env's own step function and replays it exactly.
 """
 
 from __future__ import annotations
@@ -41,9 +43,10 @@ import numpy as np
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env import mechanics as mech
-from grasp_env import planner
+from grasp_env import planner, regrasp
+from grasp_env.errors import SolverError
 from grasp_env.scene import bundled_scenes, load_scene
-from grasp_env.simulator import Simulator
+from grasp_env.simulator import SimulationError, Simulator
 
 #: Frames of the filmstrip (the paper's Fig. 13 has 15) and its layout.
 FILMSTRIP_FRAMES = 15
@@ -61,6 +64,9 @@ REPLAN_TOL = 1e-4
 #: (round-off of 1e-10 rad in the fingers) change the outcome: square and heavy_square need 5
 #: re-plans, triangle 1-3. Each costs one lifting plan (about a second of CPU).
 MAX_REPLANS = 10
+#: Budget (simulated moves) of the policy's exploratory lifting, run at most once an episode.
+#: On tall_rectangle the planner's search needs 515-2213 moves (its seeds 0-2).
+EXPLORE_MOVES = 5000
 #: Whole-planner plans kept (per scene) by :class:`ScriptedPolicy` with palm control.
 PLAN_CACHE_SIZE = 16
 _PLAN_CACHE: dict[tuple, planner.Plan] = {}
@@ -322,7 +328,10 @@ class ScriptedPolicy:
     :func:`grasp_env.planner.approach_path` (palm actions included), and there plans lifting
     and grip adjustment again from the env's own state. Scenes whose only plans start with a
     tilted palm (square, heavy_square, triangle) need ``palm_control`` True; the approach
-    takes most of the steps (about 90-150 at the default step sizes).
+    takes most of the steps (about 90-150 at the default step sizes). Where no placement
+    lifts the object (tall_rectangle), it plans the planner's exploratory lifting with palm
+    motion (:mod:`grasp_env.regrasp`) from the env's state on the env's own step function
+    (``simulate_action``), so the env follows it exactly.
 
     Args:
         env: a ``FrictionlessGraspEnv``, possibly wrapped.
@@ -333,14 +342,17 @@ class ScriptedPolicy:
         self.env = env
         self.dq = dq
         self.plan: planner.Plan | None = None
-        self._waypoints: list[tuple[np.ndarray, np.ndarray]] = []  # (hand, object pose)
+        # (hand, object pose, hand increment or None: the difference of the hands)
+        self._waypoints: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
         self._chunk: list[np.ndarray] = []  # actions left to reach the current waypoint
         self._expected: np.ndarray | None = None  # object pose planned at that waypoint
         self._replans = 0
+        self._explored = False
 
     def reset(self, obs=None, info=None) -> None:
         """Plan from the env's current state (call after every ``env.reset``)."""
         self._replans = 0
+        self._explored = False
         self._transit_left = -1  # waypoints left before the planned placement (-1: none)
         self._replan()
 
@@ -350,7 +362,8 @@ class ScriptedPolicy:
         plan = self._fixed_palm_plan(sim, state)
         self._use(plan, [])
         if not plan.success and palm_moves and base.palm_control:
-            self._replan_with_palm(sim, state)
+            if not self._replan_with_palm(sim, state):
+                self._explore(state)
 
     def _fixed_palm_plan(self, sim: Simulator, state) -> planner.Plan:
         """Close until both fingers touch, lift and adjust the grip, the palm where it is."""
@@ -364,16 +377,25 @@ class ScriptedPolicy:
             planner.adjust_grip(sim, state, plan)
         return plan
 
-    def _use(self, plan: planner.Plan, transit: list[np.ndarray]) -> None:
-        """Follow ``transit`` (hand configurations, the object at rest), then ``plan``."""
+    def _use(
+        self,
+        plan: planner.Plan,
+        transit: list[np.ndarray],
+        increments: list[np.ndarray] | None = None,
+    ) -> None:
+        """Follow ``transit`` (hand configurations, the object at rest), then ``plan``; its
+        first steps by ``increments`` if given (the hand increments they were planned with)."""
         self.plan = plan
         rest = self.env.unwrapped._state.object_pose.copy()
-        self._waypoints = [(h, rest) for h in transit]
-        self._waypoints += [(st.state.hand, st.state.object_pose) for st in plan.steps[1:]]
+        self._waypoints = [(h, rest, None) for h in transit]
+        incs = list(increments or [])
+        for k, st in enumerate(plan.steps[1:]):
+            dh = incs[k] if k < len(incs) else None
+            self._waypoints.append((st.state.hand, st.state.object_pose, dh))
         self._transit_left = len(transit) if transit else -1
         self._chunk, self._expected = [], None
 
-    def _replan_with_palm(self, sim: Simulator, state) -> None:
+    def _replan_with_palm(self, sim: Simulator, state) -> bool:
         """With palm control, when lifting from the env's hand placement fails: the whole
         planner's grasp (any of its placements, tilted palm included), reached from the env's
         state along :func:`grasp_env.planner.approach_path`. Only while the object still rests
@@ -382,13 +404,49 @@ class ScriptedPolicy:
         bifurcation, where round-off in the env's hand (float32 actions) changes the outcome."""
         scene = sim.scene
         if np.abs(state.object_pose - scene.object.start_pose).max() > 1e-9 * sim.size:
-            return
+            return False
         plan = self._full_plan(sim)
         if not plan.success:
-            return
+            return False
         path = planner.approach_path(sim, state, plan.steps[0].state.hand)
-        if path is not None:
-            self._use(plan, path)
+        if path is None:
+            return False
+        self._use(plan, path)
+        return True
+
+    def _explore(self, state) -> None:
+        """With palm control, when no placement lifts the object: the planner's exploratory
+        lifting with palm motion (:mod:`grasp_env.regrasp`) from the env's state, then grip
+        adjustment; at most once an episode (``EXPLORE_MOVES``). The search simulates the very
+        actions the policy will send
+        (``simulate_action``, the env's own step), so the env follows the path exactly, past
+        every tipping bifurcation."""
+        base = self.env.unwrapped
+        if self._explored:
+            return
+        self._explored = True
+
+        def move(st, dh: np.ndarray):
+            try:
+                for a in self._actions(dh):
+                    new = base.simulate_action(st, a)
+                    if new.on_support and not st.on_support:
+                        return None  # a drop: the env would end the episode
+                    st = new
+            except (SimulationError, SolverError):
+                return None
+            return st
+
+        found = regrasp.explore_lift(state, move, planner._grasped, max_moves=EXPLORE_MOVES)
+        if found.states is None:
+            return
+        states, increments = regrasp.shorten(found.states, found.increments, move, planner._grasped)
+        plan = planner.Plan(status="form_closure", message="exploratory lifting")
+        plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
+        for st in states[1:]:
+            plan.steps.append(planner.PlanStep("lifting", st, math.nan, "explore"))
+        planner.adjust_grip(base._sim, states[-1], plan)
+        self._use(plan, [], increments)
 
     def _full_plan(self, sim: Simulator) -> planner.Plan:
         """:func:`grasp_env.planner.plan_grasp` on the env's scene, cached per scene (the
@@ -398,7 +456,8 @@ class ScriptedPolicy:
         if key not in _PLAN_CACHE:
             if len(_PLAN_CACHE) >= PLAN_CACHE_SIZE:
                 _PLAN_CACHE.pop(next(iter(_PLAN_CACHE)))
-            _PLAN_CACHE[key] = planner.plan_grasp(scene, sim=sim, dq=self.dq)
+            # no exploratory lifting here: the policy explores from the env's own state
+            _PLAN_CACHE[key] = planner.plan_grasp(scene, sim=sim, dq=self.dq, explore_moves=0)
         return _PLAN_CACHE[key]
 
     def act(self, obs=None) -> np.ndarray:
@@ -418,9 +477,9 @@ class ScriptedPolicy:
                 if plan.success:
                     self._use(plan, [])
             if self._waypoints:
-                hand, self._expected = self._waypoints.pop(0)
+                hand, self._expected, dh = self._waypoints.pop(0)
                 self._transit_left -= 1
-                self._chunk = self._actions(hand - state.hand)
+                self._chunk = self._actions(hand - state.hand if dh is None else dh)
         if not self._chunk:
             return np.zeros(base.action_space.shape, np.float32)
         return self._chunk.pop(0)

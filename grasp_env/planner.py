@@ -39,6 +39,7 @@ from grasp_env import contacts as ct
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env import mechanics as mech
+from grasp_env import regrasp
 from grasp_env.errors import SolverError
 from grasp_env.simulator import SimulationError, Simulator
 from grasp_env.state import State
@@ -77,6 +78,9 @@ PATIENCE = 5
 #: Least decrease of the object's distance to the palm that counts as lifting progress,
 #: relative to the object's size.
 PROGRESS_TOL = 5e-3
+#: Budget (simulated hand moves) of the exploratory lifting with palm motion
+#: (:func:`explore`), the planner's last resort.
+EXPLORE_MOVES = 20000
 
 
 @dataclass(frozen=True)
@@ -132,10 +136,6 @@ class Plan:
 
 def _touching_bodies(state: State) -> set[str]:
     return {c.body for c in state.contacts}
-
-
-def _off_support(state: State) -> bool:
-    return "support" not in _touching_bodies(state)
 
 
 def _hand_clear(scene, h: np.ndarray, q_obj: np.ndarray, tol: float) -> bool:
@@ -370,7 +370,7 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
     squeeze = np.array([dq, -dq])
     moves = [np.array(m) * dq for m in ALTERNATIVES]
     record, since_record = palm_distance(state), 0
-    lifted = _off_support(state)
+    lifted = not state.on_support
     for _ in range(max_steps):
         if _grasped(state):
             plan.status, plan.message = "form_closure", "form closure reached"
@@ -408,7 +408,7 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
             plan.message = "no lifting increment brings the object closer to the palm"
             return state
         for state in chosen:
-            lifted = lifted or _off_support(state)
+            lifted = lifted or not state.on_support
             plan.steps.append(
                 PlanStep("lifting", state, _grip_if_closed(state), _event_note(state))
             )
@@ -441,10 +441,10 @@ def _admissible(nxt: State | None, prev: State, lifted: bool, width: float) -> b
     stays so (unless the grasp closed)."""
     if nxt is None or np.abs(nxt.hand - prev.hand).max() <= 1e-12:
         return False
-    if (lifted or _off_support(prev)) and not _off_support(nxt):
+    if (lifted or not prev.on_support) and nxt.on_support:
         return False
     opened = finger_gap(prev) < width <= finger_gap(nxt)
-    return _grasped(nxt) or not (_off_support(nxt) and opened)
+    return _grasped(nxt) or nxt.on_support or not opened
 
 
 def _score(state: State) -> float:
@@ -454,7 +454,7 @@ def _score(state: State) -> float:
 
 def _grasped(state: State) -> bool:
     """Form closure with the object off the support: the goal of lifting."""
-    return _off_support(state) and len(state.contacts) >= 4 and mech.is_form_closure(state)
+    return not state.on_support and len(state.contacts) >= 4 and mech.is_form_closure(state)
 
 
 def _event_note(state: State) -> str:
@@ -653,7 +653,7 @@ def _follow_branch(
         mid = 0.5 * (state.hand + target)
         mid[3:] += opening
         via = _try_move(sim, state, palm=mid[:3], fingers=mid[3:])
-        if via is None or not _off_support(via):
+        if via is None or via.on_support:
             continue
         end = _try_move(sim, via, palm=target[:3], fingers=target[3:])
         if (y_new := _closed_grip(end)) < y:
@@ -858,13 +858,23 @@ def _path_moves_nothing(sim: Simulator, state: State, path: list[np.ndarray]) ->
     )
 
 
-def plan_grasp(scene, sim: Simulator | None = None, dq: float = 0.02, adjust: bool = True) -> Plan:
-    """Run the three phases on a scene (a Scene, bundled name, path or dict)."""
+def plan_grasp(
+    scene,
+    sim: Simulator | None = None,
+    dq: float = 0.02,
+    adjust: bool = True,
+    explore_moves: int = EXPLORE_MOVES,
+) -> Plan:
+    """Run the three phases on a scene (a Scene, bundled name, path or dict).
+
+    When lifting fails from every placement, :func:`explore` searches for a lift with palm
+    motion from the centred placement, within ``explore_moves`` simulated moves (0: not at
+    all)."""
     t0 = time.process_time()
     sim = sim or Simulator(scene)
     plan = Plan()
     try:
-        _plan(sim, plan, dq, adjust)
+        _plan(sim, plan, dq, adjust, explore_moves)
     except (SimulationError, SolverError) as exc:
         plan.status, plan.message = "error", f"simulation failed: {exc}"
     plan.cpu_time = time.process_time() - t0
@@ -884,7 +894,7 @@ def _placements(sim: Simulator, centred: State):
             yield centred, "centred"
 
 
-def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool) -> None:
+def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: int) -> None:
     left, right = tippability_regions(sim.scene)
     if left.is_empty and right.is_empty:
         plan.status = "not_tippable"
@@ -908,6 +918,12 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool) -> None:
         plan.status = "not_tippable"
         plan.message = "no tipping placement: squeezing the centred hand does not move the object"
         return
+    if not plan.success and explore_moves > 0:
+        plan.steps = [PlanStep("pre-liftoff", centred, _grip_if_closed(centred), "centred")]
+        plan.placement = "centred, exploratory lifting"
+        state = explore(sim, centred, plan, explore_moves)
+        if not plan.success:
+            failed.append(plan.message)
     if not plan.success:
         plan.message = "; ".join(failed)
         return
@@ -915,3 +931,31 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool) -> None:
         plan.message += f" (after re-placement; {'; '.join(failed)})"
     if adjust:
         adjust_grip(sim, state, plan)
+
+
+def explore(sim: Simulator, state: State, plan: Plan, max_moves: int = EXPLORE_MOVES) -> State:
+    """Exploratory lifting with palm motion (:mod:`grasp_env.regrasp`) from ``state``: a
+    seeded search over finger increments, palm translations and palm turns (about the palm's
+    centre or a finger's joint) for form closure with the object off the support, the path
+    then shortened. Appends the path to ``plan`` as lifting steps noted ``explore``; returns
+    the last state."""
+
+    def move(st: State, dh: np.ndarray) -> State | None:
+        h = st.hand + dh
+        return _try_move(sim, st, palm=h[:3], fingers=h[3:])
+
+    found = regrasp.explore_lift(state, move, _grasped, max_moves=max_moves)
+    if found.states is None:
+        plan.status = "stuck"
+        plan.message = f"exploratory lifting found no grasp in {found.moves} moves"
+        return state
+    states, _ = regrasp.shorten(found.states, found.increments, move, _grasped)
+    for st in states[1:]:
+        note = ", ".join(filter(None, ("explore", _event_note(st))))
+        plan.steps.append(PlanStep("lifting", st, _grip_if_closed(st), note))
+    plan.status = "form_closure"
+    plan.message = (
+        f"form closure reached by exploratory lifting with palm motion ({found.moves} moves "
+        f"searched, path of {len(found.states) - 1} shortened to {len(states) - 1})"
+    )
+    return states[-1]

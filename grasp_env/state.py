@@ -63,6 +63,11 @@ class State:
         return is_form_closure(self)
 
     @property
+    def on_support(self) -> bool:
+        """Whether the object touches the support."""
+        return any(c.body == "support" for c in self.contacts)
+
+    @property
     def palm_pose(self) -> np.ndarray:
         return self.hand[:3]
 

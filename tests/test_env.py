@@ -131,6 +131,22 @@ def test_seeded_rollout_is_reproducible():
     assert any(c["body"].startswith("finger") for step in runs[0] for c in step[-1]["contacts"])
 
 
+@pytest.mark.parametrize("palm_control", [False, True])
+def test_simulate_action_is_what_step_does(palm_control):
+    # The model planners use: the same state to the last bit, and the env left untouched.
+    env = FrictionlessGraspEnv(start="preliftoff", palm_control=palm_control)
+    env.reset(seed=2)
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        action = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        before = env._state
+        predicted = env.simulate_action(before, np.clip(np.asarray(action, float), -1, 1))
+        assert env._state is before
+        env.step(action)
+        np.testing.assert_array_equal(predicted.hand, env._state.hand)
+        np.testing.assert_array_equal(predicted.object_pose, env._state.object_pose)
+
+
 def test_pickle_round_trip_mid_episode():
     env = FrictionlessGraspEnv(start="preliftoff")
     env.reset(seed=1)

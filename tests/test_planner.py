@@ -16,9 +16,6 @@ from grasp_env import planner
 from grasp_env.envs.shapes import random_shape_scene
 
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
-#: Scenes the planner does not lift yet (wedged between the fingertips from every placement
-#: tried; see docs/reproduction.md).
-KNOWN_STUCK = {"tall_rectangle"}
 
 
 def _positively_spans(state) -> bool:
@@ -54,8 +51,6 @@ def _params(names):
     out = []
     for name in names:
         marks = [] if name == "fig13" else [pytest.mark.slow]
-        if name in KNOWN_STUCK:
-            marks.append(pytest.mark.xfail(strict=True, reason="lifting gets stuck in a wedge"))
         out.append(pytest.param(name, marks=marks, id=name))
     return out
 

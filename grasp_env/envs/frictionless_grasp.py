@@ -191,6 +191,12 @@ class FrictionlessGraspEnv(gym.Env):
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
       ``render_height`` (640, 480).
 
+    ## Model
+
+    ``env.unwrapped.simulate_action(state, action)`` returns the state an action leads to from
+    any state, exactly as ``step`` computes it, without changing the env: planners that act
+    through the env (the scripted policy's exploratory lifting) plan on it.
+
     ## Version History
 
     * v0: initial version.
@@ -448,22 +454,10 @@ class FrictionlessGraspEnv(gym.Env):
         a = self._check_action(action)
         if self._state is None:
             raise RuntimeError("call reset() before step()")
-        state, sim = self._state, self._sim
-        h = state.hand
-        fingers = h[3:] + self.max_finger_step * a[:2] * np.array([1.0, -1.0])
-        palm = None
-        if self.palm_control:
-            w = sim.scene.palm.width
-            x0 = sim.scene.object.start_pose[0]
-            step = self.max_palm_step * np.array([w, w, 1.0])
-            palm = np.clip(
-                h[:3] + step * a[2:],
-                [x0 - PALM_X_RANGE * w, 0.0, -PALM_THETA_MAX],
-                [x0 + PALM_X_RANGE * w, PALM_Y_MAX * w, PALM_THETA_MAX],
-            )
+        state = self._state
         self._steps += 1
         try:
-            new = sim.move_hand(state, palm=palm, fingers=fingers)
+            new = self.simulate_action(state, a)
             if not (np.all(np.isfinite(new.object_pose)) and np.all(np.isfinite(new.hand))):
                 raise SimulationError(
                     f"non-finite state: object {new.object_pose}, hand {new.hand}"
@@ -486,9 +480,31 @@ class FrictionlessGraspEnv(gym.Env):
             self.render()
         return self._get_obs(), reward, bool(dropped), False, info
 
+    def simulate_action(self, state: State, action: np.ndarray) -> State:
+        """The state an action leads to from ``state``, exactly as :meth:`step` computes it,
+        without changing the env: a model for planners that act through the env (the
+        scripted policy), so that what they plan is what the env then does, to the last bit.
+        ``action`` must already be valid (finite, in [-1, 1], of the action space's shape).
+        Raises ``SimulationError`` or ``SolverError`` where :meth:`step` ends the episode."""
+        a = np.asarray(action, dtype=float)
+        h = state.hand
+        fingers = h[3:] + self.max_finger_step * a[:2] * np.array([1.0, -1.0])
+        palm = None
+        if self.palm_control:
+            scene = self._sim.scene
+            w = scene.palm.width
+            x0 = scene.object.start_pose[0]
+            step = self.max_palm_step * np.array([w, w, 1.0])
+            palm = np.clip(
+                h[:3] + step * a[2:],
+                [x0 - PALM_X_RANGE * w, 0.0, -PALM_THETA_MAX],
+                [x0 + PALM_X_RANGE * w, PALM_Y_MAX * w, PALM_THETA_MAX],
+            )
+        return self._sim.move_hand(state, palm=palm, fingers=fingers)
+
     def _analyse(self, state: State) -> dict[str, Any]:
         """Form closure (always), y* (only when needed) and where the object is."""
-        on_support = any(c.body == "support" for c in state.contacts)
+        on_support = state.on_support
         # Planar form closure needs at least four frictionless contacts: skip the LP below.
         closure = len(state.contacts) >= 4 and is_form_closure(state)
         grip = grip_objective(state) if closure or self.always_compute_grip else math.nan
