@@ -64,9 +64,12 @@ REPLAN_TOL = 1e-4
 #: (round-off of 1e-10 rad in the fingers) change the outcome: square and heavy_square need 5
 #: re-plans, triangle 1-3. Each costs one lifting plan (about a second of CPU).
 MAX_REPLANS = 10
-#: Budget (simulated moves) of the policy's exploratory lifting, run at most once an episode.
-#: On tall_rectangle the planner's search needs 515-2213 moves (its seeds 0-2).
-EXPLORE_MOVES = 5000
+#: Budget (simulated moves) of the policy's exploratory lifting, run at most once an episode
+#: (the planner's budget). On tall_rectangle the planner's search needs 515-2213 moves (its
+#: seeds 0-2).
+EXPLORE_MOVES = 20000
+#: Finger actions at most to close the fingers onto the object before exploring.
+CLOSE_STEPS = 64
 #: Whole-planner plans kept (per scene) by :class:`ScriptedPolicy` with palm control.
 PLAN_CACHE_SIZE = 16
 _PLAN_CACHE: dict[tuple, planner.Plan] = {}
@@ -437,10 +440,27 @@ class ScriptedPolicy:
                 return None
             return st
 
-        found = regrasp.explore_lift(state, move, planner._grasped, max_moves=EXPLORE_MOVES)
+        # Like the planner, explore from the fingers closed until both touch the object (one
+        # finger action at a time, each finger stopping once it touches).
+        states, increments = [state], []
+        for _ in range(CLOSE_STEPS):
+            touching = {c.body for c in states[-1].contacts}
+            dh = np.zeros(5)
+            dh[3:] = base.max_finger_step * np.array(
+                [f"finger{i}" not in touching for i in (1, 2)], float
+            )
+            dh[4] = -dh[4]  # finger 2 closes as q2 falls
+            new = move(states[-1], dh) if dh.any() else None
+            if new is None or new.jammed or np.array_equal(new.hand, states[-1].hand):
+                break
+            states.append(new)
+            increments.append(dh)
+        found = regrasp.explore_lift(states[-1], move, planner._grasped, max_moves=EXPLORE_MOVES)
         if found.states is None:
             return
-        states, increments = regrasp.shorten(found.states, found.increments, move, planner._grasped)
+        states, increments = regrasp.shorten(
+            states + found.states[1:], increments + found.increments, move, planner._grasped
+        )
         plan = planner.Plan(status="form_closure", message="exploratory lifting")
         plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
         for st in states[1:]:
