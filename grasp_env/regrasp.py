@@ -198,7 +198,7 @@ def explore_lift(
                     return _result(nodes, index, moves, len(archive))
             else:
                 continue
-            break
+            break  # a refused move ends the walk
     return ExploreResult(None, [], moves, len(archive))
 
 
