@@ -43,7 +43,7 @@ import numpy as np
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env import mechanics as mech
-from grasp_env import planner, regrasp
+from grasp_env import planner
 from grasp_env.errors import SolverError
 from grasp_env.scene import bundled_scenes, load_scene
 from grasp_env.simulator import SimulationError, Simulator
@@ -444,7 +444,7 @@ class ScriptedPolicy:
         # finger action at a time, each finger stopping once it touches).
         states, increments = [state], []
         for _ in range(CLOSE_STEPS):
-            touching = {c.body for c in states[-1].contacts}
+            touching = planner._touching_bodies(states[-1])
             dh = np.zeros(5)
             dh[3:] = base.max_finger_step * np.array(
                 [f"finger{i}" not in touching for i in (1, 2)], float
@@ -455,17 +455,14 @@ class ScriptedPolicy:
                 break
             states.append(new)
             increments.append(dh)
-        found = regrasp.explore_lift(states[-1], move, planner._grasped, max_moves=EXPLORE_MOVES)
-        if found.states is None:
-            return
-        states, increments = regrasp.shorten(
-            states + found.states[1:], increments + found.increments, move, planner._grasped
-        )
-        plan = planner.Plan(status="form_closure", message="exploratory lifting")
+        plan = planner.Plan()
         plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
-        for st in states[1:]:
-            plan.steps.append(planner.PlanStep("lifting", st, math.nan, "explore"))
-        planner.adjust_grip(base._sim, states[-1], plan)
+        end, increments = planner.explore(
+            base._sim, plan, (states, increments), EXPLORE_MOVES, move
+        )
+        if not plan.success:
+            return
+        planner.adjust_grip(base._sim, end, plan)
         self._use(plan, [], increments)
 
     def _full_plan(self, sim: Simulator) -> planner.Plan:

@@ -921,7 +921,7 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
     if not plan.success and explore_moves > 0:
         plan.steps = [PlanStep("pre-liftoff", centred, _grip_if_closed(centred), "centred")]
         plan.placement = "centred, exploratory lifting"
-        state = explore(sim, centred, plan, explore_moves)
+        state, _ = explore(sim, plan, ([centred], []), explore_moves)
         if not plan.success:
             failed.append(plan.message)
     if not plan.success:
@@ -933,29 +933,44 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         adjust_grip(sim, state, plan)
 
 
-def explore(sim: Simulator, state: State, plan: Plan, max_moves: int = EXPLORE_MOVES) -> State:
-    """Exploratory lifting with palm motion (:mod:`grasp_env.regrasp`) from ``state``: a
-    seeded search over finger increments, palm translations and palm turns (about the palm's
-    centre or a finger's joint) for form closure with the object off the support, the path
-    then shortened. Appends the path to ``plan`` as lifting steps noted ``explore``; returns
-    the last state."""
+def explore(
+    sim: Simulator,
+    plan: Plan,
+    lead: tuple[list[State], list[np.ndarray]],
+    max_moves: int = EXPLORE_MOVES,
+    move: regrasp.Move | None = None,
+) -> tuple[State, list[np.ndarray]]:
+    """Exploratory lifting with palm motion (:mod:`grasp_env.regrasp`): a seeded search over
+    finger increments, palm translations and palm turns for form closure with the object off
+    the support, from the last state of ``lead`` (states and the hand increments between
+    them), the whole path then shortened.
 
-    def move(st: State, dh: np.ndarray) -> State | None:
-        h = st.hand + dh
-        return _try_move(sim, st, palm=h[:3], fingers=h[3:])
+    ``move`` simulates a hand increment (default: one straight simulator move; the scripted
+    policy passes the env's own step). Appends the path after ``lead``'s first state to
+    ``plan`` as lifting steps noted ``explore`` and sets its status; returns the last state
+    and the path's hand increments."""
+    if move is None:
 
-    found = regrasp.explore_lift(state, move, _grasped, max_moves=max_moves)
+        def move(st: State, dh: np.ndarray) -> State | None:
+            h = st.hand + dh
+            return _try_move(sim, st, palm=h[:3], fingers=h[3:])
+
+    states, increments = lead
+    found = regrasp.explore_lift(states[-1], move, _grasped, max_moves=max_moves)
     if found.states is None:
         plan.status = "stuck"
         plan.message = f"exploratory lifting found no grasp in {found.moves} moves"
-        return state
-    states, _ = regrasp.shorten(found.states, found.increments, move, _grasped)
+        return states[-1], []
+    walk = len(states) - 1 + len(found.states) - 1
+    states, increments = regrasp.shorten(
+        states + found.states[1:], increments + found.increments, move, _grasped
+    )
     for st in states[1:]:
         note = ", ".join(filter(None, ("explore", _event_note(st))))
         plan.steps.append(PlanStep("lifting", st, _grip_if_closed(st), note))
     plan.status = "form_closure"
     plan.message = (
         f"form closure reached by exploratory lifting with palm motion ({found.moves} moves "
-        f"searched, path of {len(found.states) - 1} shortened to {len(states) - 1})"
+        f"searched, path of {walk} shortened to {len(states) - 1})"
     )
-    return states[-1]
+    return states[-1], increments
