@@ -15,7 +15,6 @@ Normals always point into the object; gaps are positive when the bodies are apar
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +22,7 @@ import numpy as np
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env.scene import Scene
+from grasp_env.sim.placement import world_points
 
 EDGE, TIP = 0, 1
 KIND_NAMES = ("edge", "tip")
@@ -89,28 +89,15 @@ class Placement:
     """
 
     __slots__ = (
-        "_pair_gaps", "com_W", "h", "hand_W", "hand_n_W", "obj_W", "obj_n_W", "q", "scene"
+        "_pair_gaps", "com_W", "h", "hand_W", "hand_n_W", "local", "obj_W", "obj_n_W", "q",
+        "scene", "world",
     )  # fmt: skip
 
     def __init__(self, scene: Scene, q: np.ndarray, h: np.ndarray) -> None:
         self.scene, self.q, self.h = scene, q, h
-        local = _local_geometry(scene)
-        th = h[2]
-        c, s = math.cos(th), math.sin(th)
-        half = scene.palm.width / 2.0
-        origins = np.array(
-            [[q[0], q[1]], [h[0], h[1]], [h[0] - c * half, h[1] - s * half],
-             [h[0] + c * half, h[1] + s * half]]
-        )  # fmt: skip
-        angles = np.array([q[2], th, th + h[3], th + h[4]])
-        # rotate every body's vertices and normals at once: (x, y) -> (c x - s y, s x + c y)
-        cv, sv = np.cos(angles)[local.body], np.sin(angles)[local.body]
-        x, y = local.points[:, 0], local.points[:, 1]
-        world = np.empty_like(local.points)
-        world[:, 0] = cv * x - sv * y
-        world[:, 1] = sv * x + cv * y
+        local = self.local = local_geometry(scene)
         m, n = local.n_vertices, local.n_object
-        world[:m] += origins[local.body[:m]]
+        world = self.world = world_points(local.points, local.body, m, local.half, q, h)
         self._pair_gaps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.com_W = q[:2]
         self.obj_W, self.obj_n_W = world[:n], world[m : m + n]
@@ -142,41 +129,50 @@ class Placement:
                 return p, _UP, float(p[1]), 0.5, np.inf
             poly, n = self.hand_W[body - 1], self.hand_n_W[body - 1][j]
             a, b = poly[j], poly[(j + 1) % len(poly)]
-            d = b - a
-            L2 = float(d @ d)
-            return p, n, float(n @ (p - a)), float((p - a) @ d) / L2, L2**0.5
+            return (p, n, *_gap_along(p, a, b, n))
         p = self.hand_W[body - 1][j]
         m = self.obj_n_W[k]
         a, b = self.obj_W[k], self.obj_W[(k + 1) % len(self.obj_W)]
-        d = b - a
-        L2 = float(d @ d)
-        return p, -m, float(m @ (p - a)), float((p - a) @ d) / L2, L2**0.5
+        return (p, -m, *_gap_along(p, a, b, m))
+
+
+def _gap_along(p: np.ndarray, a: np.ndarray, b: np.ndarray, n: np.ndarray):
+    """Gap of ``p`` to the line of edge ``a -> b`` with unit normal ``n``, the edge
+    parameter of its projection, and the edge length (2-vector products written out: no
+    BLAS call, whose rounding varies with the machine)."""
+    dx, dy = float(b[0] - a[0]), float(b[1] - a[1])
+    rx, ry = float(p[0] - a[0]), float(p[1] - a[1])
+    L2 = dx * dx + dy * dy
+    return float(n[0]) * rx + float(n[1]) * ry, (rx * dx + ry * dy) / L2, L2**0.5
 
 
 _UP = np.array([0.0, 1.0])
 
 
-class _LocalGeometry:
+class LocalGeometry:
     """Body-frame vertices, then outward edge normals, of the object and the three hand bodies
     stacked in one array, with each row's body (0 object, 1-3 hand), so that one rotation
-    places them all."""
+    places them all (:func:`grasp_env.sim.placement.world_points`)."""
 
-    __slots__ = ("body", "n_object", "n_vertices", "points")
+    __slots__ = ("body", "half", "n_object", "n_vertices", "points")
 
     def __init__(self, scene: Scene) -> None:
         polys = [scene.object.vertices_B, *kin.hand_polygons_local(scene)]
         body = np.repeat(np.arange(4), [len(p) for p in polys])
-        self.points = np.concatenate(polys + [geo.edge_normals(p) for p in polys])
-        self.body = np.concatenate((body, body))
+        self.points = np.ascontiguousarray(
+            np.concatenate(polys + [geo.edge_normals(p) for p in polys]), dtype=float
+        )
+        self.body = np.concatenate((body, body)).astype(np.int64)
         self.n_object, self.n_vertices = len(polys[0]), len(body)
+        self.half = float(scene.palm.width) / 2.0
 
 
-def _local_geometry(scene: Scene) -> _LocalGeometry:
+def local_geometry(scene: Scene) -> LocalGeometry:
     """The scene's stacked body-frame geometry (cached on the scene)."""
-    cache = scene.__dict__.get("_local_geometry")
+    cache = scene.__dict__.get("local_geometry")
     if cache is None:
-        cache = _LocalGeometry(scene)
-        object.__setattr__(scene, "_local_geometry", cache)
+        cache = LocalGeometry(scene)
+        object.__setattr__(scene, "local_geometry", cache)
     return cache
 
 
@@ -254,7 +250,7 @@ def _locally_valid(pl: Placement, key: ContactKey, tol: float) -> bool:
     # has just come to lie along another, located to within tol at both of its ends).
     for nbr in (verts[v - 1], verts[(v + 1) % m]):
         d = nbr - p
-        if n @ d < -max(4.0 * tol, 1e-7 * float(np.hypot(d[0], d[1]))):
+        if n[0] * d[0] + n[1] * d[1] < -max(4.0 * tol, 1e-7 * float(np.hypot(d[0], d[1]))):
             return False
     return True
 
@@ -277,7 +273,10 @@ def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[Contac
         if abs(gap) > tol or key in exclude or not _locally_valid(pl, key, tol):
             continue
         p, n, *_ = pl.evaluate(key)
-        if any(np.abs(p - p2).max() <= 2 * tol and n @ n2 > 1 - 1e-9 for p2, n2 in seen):
+        if any(
+            np.abs(p - p2).max() <= 2 * tol and n[0] * n2[0] + n[1] * n2[1] > 1 - 1e-9
+            for p2, n2 in seen
+        ):
             continue
         seen.append((p, n))
         keys.append(key)

@@ -65,6 +65,7 @@ from functools import cache
 import numpy as np
 
 from grasp_env.errors import SolverError
+from grasp_env.sim import dense
 
 RANK_TOL = 1e-10
 """Unit-row determinant (volume) an r-subset must exceed for ``rank V >= r``."""
@@ -162,6 +163,10 @@ def _triple_gathers(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 _ALTERNATING = [np.array([(-1.0) ** j for j in range(k)])[:, None] for k in range(5)]
 
 
+def _norm(x: np.ndarray) -> float:
+    return math.sqrt(dense.dot(x, x))
+
+
 # ---------------------------------------------------------------------------------------------
 # Closed-form adjugates and null vectors
 
@@ -225,15 +230,15 @@ def _optimal_basis(
     B = _subsets_T(n, r)
     G = G * np.sign(det)  # now G[:, :, i] = |det| W_B^{-T}
     adet = np.abs(det)
-    lam_s = np.matmul(c_r, G)  # lam_B |det|, (r, m)
+    lam_s = (G * c_r[None, :, None]).sum(axis=1)  # lam_B |det| = G c_r, (r, m)
     lam_min = lam_s.min(axis=0)
-    dual_round = -_ROUNDING * math.sqrt(c_r @ c_r)
+    dual_round = -_ROUNDING * _norm(c_r)
     # min lam_B >= -FEAS_TOL sum(lam_B) (at least max|lam_B| wherever it can hold) - rounding.
     dual_ok = lam_min + FEAS_TOL * lam_s.sum(axis=0) >= dual_round
     if not dual_ok.any():
         return None
-    u_s = np.einsum("kjm,km->jm", G, xi.take(B))  # u |det|, (r, m)
-    slack_s = W @ u_s - xi[:, None] * adet  # (W u - xi) |det|, (n, m)
+    u_s = (G * xi.take(B)[:, None, :]).sum(axis=0)  # u |det| = G^T xi_B, (r, m)
+    slack_s = dense.matmul(W, u_s) - xi[:, None] * adet  # (W u - xi) |det|, (n, m)
     slack_min = slack_s.min(axis=0)
     xi_size = np.abs(xi).max()
     primal_round = -_ROUNDING * xi_size
@@ -255,13 +260,13 @@ def _optimal_basis(
         # step of iterative refinement restores small residuals in W_B u = xi_B, W_B^T lam = c.
         inv_T = G[:, :, j] / adet[j]  # W_B^{-T}
         W_B = W[B[:, j]]
-        u += inv_T.T @ (xi[B[:, j]] - W_B @ u)
-        lam_B += inv_T @ (c_r - W_B.T @ lam_B)
+        u += dense.rmatvec(inv_T, xi[B[:, j]] - dense.matvec(W_B, u))
+        lam_B += dense.matvec(inv_T, c_r - dense.rmatvec(W_B, lam_B))
     if lam_B.min() < 0:
         # Within tolerance, but clipping it would leave a residual in V^T lam = c: refit c on
         # the positive multipliers' rows instead.
         keep = lam_B > 0
-        refit = np.linalg.lstsq(W[B[keep, j]].T, c_r, rcond=None)[0]
+        refit = dense.lstsq(W[B[keep, j]].T.copy(), c_r, -1.0)[0]
         lam_B = np.zeros(r)
         lam_B[keep] = np.maximum(refit, 0.0)
     lam = np.zeros(n)
@@ -308,10 +313,10 @@ def _descent_ray(W: np.ndarray, c_r: np.ndarray) -> np.ndarray | None:
     if not nonzero.any():
         return None
     D = D[:, nonzero] / size[nonzero]
-    cd = c_r @ D
+    cd = dense.rmatvec(D, c_r)
     D = D * -np.sign(cd)
     cd = -np.abs(cd)
-    good = (W @ D >= -FEAS_TOL).all(axis=0) & (cd < -FEAS_TOL * math.sqrt(c_r @ c_r))
+    good = (dense.matmul(W, D) >= -FEAS_TOL).all(axis=0) & (cd < -FEAS_TOL * _norm(c_r))
     if not good.any():
         return None
     return D[:, int(np.argmin(np.where(good, cd, np.inf)))]
@@ -335,9 +340,9 @@ def _outcome(
     c_perp = None
     c_r = c
     if Q is not None:
-        c_r = Q.T @ c
-        c_perp = c - Q @ c_r
-        if math.sqrt(c_perp @ c_perp) <= FEAS_TOL * math.sqrt(c @ c):
+        c_r = dense.rmatvec(Q, c)
+        c_perp = c - dense.matvec(Q, c_r)
+        if _norm(c_perp) <= FEAS_TOL * _norm(c):
             c_perp = None
     if c_perp is None:
         if r > 0:
@@ -348,22 +353,20 @@ def _outcome(
             best = np.zeros(0), np.zeros(len(xi))
         if best is not None:
             u, lam = best
-            v = u if Q is None else Q @ u
-            return FastLPResult("optimal", v, lam, float(c @ v))
+            v = u if Q is None else dense.matvec(Q, u)
+            return FastLPResult("optimal", v, lam, dense.dot(c, v))
     y = _farkas(W, xi, det)
     if y is not None:
         return FastLPResult("infeasible", None, None, math.inf, y)
     if c_perp is not None:
-        return FastLPResult(
-            "unbounded", None, None, -math.inf, -c_perp / math.sqrt(c_perp @ c_perp)
-        )
+        return FastLPResult("unbounded", None, None, -math.inf, -c_perp / _norm(c_perp))
     d = _descent_ray(W, c_r)
     if d is None:
         raise SolverError(
             "velocity LP: no optimal basis, Farkas vector or descent ray within tolerance",
             status="fastlp_undecided",
         )
-    return FastLPResult("unbounded", None, None, -math.inf, d if Q is None else Q @ d)
+    return FastLPResult("unbounded", None, None, -math.inf, d if Q is None else dense.matvec(Q, d))
 
 
 def _solve_unit_rows(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> FastLPResult:
@@ -375,11 +378,11 @@ def _solve_unit_rows(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> FastLPResu
             return _outcome(V, xi, c, None, G, det)
     if n:
         # Rank < 3: the row space is spanned by V's leading right singular vectors.
-        Vt = np.linalg.svd(V, full_matrices=False)[2]
+        right = dense.svd(V)[2]  # columns: right singular vectors, largest first
         for r in (2, 1):
             if n >= r:
-                Q = Vt[:r].T
-                W = V @ Q
+                Q = right[:, :r].copy()
+                W = dense.matmul(V, Q)
                 G, det = _adjugate(W)
                 if np.abs(det).max() > RANK_TOL:
                     return _outcome(W, xi, c, Q, G, det)
@@ -416,7 +419,7 @@ def solve_velocity_lp(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> FastLPRes
     V = np.asarray(V, dtype=float).reshape(-1, 3)
     xi = np.asarray(xi, dtype=float).reshape(-1)
     c = np.asarray(c, dtype=float).reshape(3)
-    row_norm = np.sqrt(np.einsum("ij,ij->i", V, V))
+    row_norm = np.sqrt((V * V).sum(axis=1))
     if not row_norm.all():
         return _with_zero_rows(V, xi, c, row_norm)
     # Scaling row i by 1/|V_i| leaves the velocity LP unchanged and scales lam_i by |V_i|.
@@ -464,7 +467,7 @@ def form_closure_fast(V: np.ndarray) -> bool:
         V: the object's constraint matrix (n, 3) (eq. 9).
     """
     V = np.asarray(V, dtype=float).reshape(-1, 3)
-    row_norm = np.sqrt(np.einsum("ij,ij->i", V, V))
+    row_norm = np.sqrt((V * V).sum(axis=1))
     V = V[row_norm > 0] / row_norm[row_norm > 0, None]
     if len(V) < 4:
         return False
@@ -473,6 +476,6 @@ def form_closure_fast(V: np.ndarray) -> bool:
     nonzero = size > RANK_TOL
     if not nonzero.any():
         return False
-    M = V @ (D[:, nonzero] / size[nonzero])
+    M = dense.matmul(V, D[:, nonzero] / size[nonzero])
     escape = (M >= -FEAS_TOL).all(axis=0) | (M <= FEAS_TOL).all(axis=0)
     return not bool(escape.any())

@@ -23,6 +23,11 @@ def rot(theta: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def norms(v: np.ndarray) -> np.ndarray:
+    """Euclidean norms of the vectors along the last axis (no BLAS call, see :func:`rotate`)."""
+    return np.sqrt((v * v).sum(axis=-1))
+
+
 def cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray | float:
     """z component of ``a x b`` for 2-vectors (broadcasts over leading axes)."""
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
@@ -33,15 +38,26 @@ def perp(a: np.ndarray) -> np.ndarray:
     return np.stack([-a[..., 1], a[..., 0]], axis=-1)
 
 
+def rotate(points: np.ndarray, theta: float) -> np.ndarray:
+    """Points ``(..., 2)`` rotated by ``theta`` (counter-clockwise) about the origin.
+
+    Written out rather than as a product with :func:`rot`: numpy's matrix products go
+    through the machine's BLAS, whose rounding differs between processors.
+    """
+    c, s = math.cos(theta), math.sin(theta)
+    x, y = points[..., 0], points[..., 1]
+    return np.stack([c * x - s * y, s * x + c * y], axis=-1)
+
+
 def transform(pose: np.ndarray, points_B: np.ndarray) -> np.ndarray:
     """Points ``(n, 2)`` in a body frame to the world, for a body pose ``(x, y, theta)``."""
-    return points_B @ rot(pose[2]).T + pose[:2]
+    return rotate(points_B, pose[2]) + pose[:2]
 
 
 def polygon_area(vertices: np.ndarray) -> float:
     """Signed area (positive for counter-clockwise vertices)."""
     x, y = vertices[:, 0], vertices[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    return 0.5 * float((x * np.roll(y, -1)).sum() - (np.roll(x, -1) * y).sum())
 
 
 def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
@@ -67,7 +83,7 @@ def edge_normals(vertices: np.ndarray) -> np.ndarray:
     """Outward unit normals of the edges ``v_k -> v_{k+1}`` of a CCW polygon, shape (n, 2)."""
     d = np.roll(vertices, -1, axis=0) - vertices
     n = np.stack([d[:, 1], -d[:, 0]], axis=1)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+    return n / norms(n)[:, None]
 
 
 def finger_axis_P(q: float) -> np.ndarray:
@@ -122,8 +138,10 @@ def segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndar
             return 0.0
 
     def to_segment(p: np.ndarray, c0: np.ndarray, dc: np.ndarray) -> float:
-        t = np.clip(np.dot(p - c0, dc) / max(np.dot(dc, dc), 1e-300), 0.0, 1.0)
-        return float(np.linalg.norm(p - c0 - t * dc))
+        r = p - c0
+        t = min(max(_dot2(r, dc) / max(_dot2(dc, dc), 1e-300), 0.0), 1.0)
+        e = r - t * dc
+        return math.sqrt(_dot2(e, e))
 
     return min(
         to_segment(a0, b0, db),
@@ -133,11 +151,15 @@ def segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndar
     )
 
 
+def _dot2(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[0] + a[1] * b[1])
+
+
 def is_convex_ccw(vertices: np.ndarray, tol: float = 1e-12) -> bool:
     """True when the polygon is strictly convex with counter-clockwise vertices."""
     d = np.roll(vertices, -1, axis=0) - vertices
     turn = cross2(d, np.roll(d, -1, axis=0))
-    scale = np.linalg.norm(d, axis=1) * np.linalg.norm(np.roll(d, -1, axis=0), axis=1)
+    scale = norms(d) * norms(np.roll(d, -1, axis=0))
     return bool(np.all(turn > tol * scale)) and polygon_area(vertices) > 0
 
 
@@ -159,6 +181,6 @@ def penetration_depth(a: np.ndarray, b: np.ndarray) -> float:
     for p, other in ((a, b), (b, a)):
         n = edge_normals(p)
         # Each edge's support line: how far the other polygon reaches behind it.
-        reach = (p * n).sum(axis=1) - (other @ n.T).min(axis=0)
+        reach = (p * n).sum(axis=1) - (other[:, None, :] * n[None]).sum(-1).min(axis=0)
         depth = min(depth, float(reach.min()))
     return depth

@@ -208,7 +208,7 @@ def tipping_placement(
                 u = np.array([math.cos(th + q_hold), math.sin(th + q_hold)])
                 J = p_C - scene.fingers[hold - 1].length * u
                 jx = scene.palm.width / 2 if hold == 2 else -scene.palm.width / 2
-                o = J - geo.rot(th) @ np.array([jx, 0.0])
+                o = J - geo.rotate(np.array([jx, 0.0]), th)
                 h = np.array([o[0], o[1], th, -math.pi / 2, -math.pi / 2])
                 h[2 + hold] = q_hold
                 h[2 + move] = scene.fingers[move - 1].limits[0 if move == 1 else 1]
@@ -335,7 +335,7 @@ def squeeze_tips(sim: Simulator, state: State, dq: float = 1e-3) -> tuple[bool, 
 
 def palm_distance(state: State) -> float:
     """Height of the object's centre of mass below the palmar edge, in the palm frame."""
-    r = geo.rot(state.hand[2]).T @ (state.object_pose[:2] - state.hand[:2])
+    r = geo.rotate(state.object_pose[:2] - state.hand[:2], -state.hand[2])
     return float(-r[1])
 
 

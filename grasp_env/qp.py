@@ -8,11 +8,13 @@ velocity on the LP's optimal face and for the steepest admissible descent of a f
 
 from __future__ import annotations
 
+import math
 from itertools import combinations
 
 import numpy as np
 
 from grasp_env.errors import SolverError
+from grasp_env.sim import dense
 
 
 def _min_norm_eq(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -21,9 +23,10 @@ def _min_norm_eq(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     if len(A) == 0:
         return np.zeros(3), np.zeros(0), 0.0
     # lstsq on A itself (not A A^T, which squares the condition number)
-    w, *_ = np.linalg.lstsq(A, b, rcond=1e-13)
-    mu, *_ = np.linalg.lstsq(A.T, w, rcond=1e-13)
-    return w, mu, float(np.linalg.norm(A @ w - b))
+    w = dense.lstsq(A, b, 1e-13)[0]
+    mu = dense.lstsq(A.T.copy(), w, 1e-13)[0]
+    r = dense.matvec(A, w) - b
+    return w, mu, math.sqrt(dense.dot(r, r))
 
 
 def least_norm(
@@ -51,9 +54,9 @@ def least_norm(
                 continue
             if size and mu[len(A) :].min() < -tol * scale:
                 continue
-            if len(C) and (C @ w - d).min() < -tol * scale:
+            if len(C) and (dense.matvec(C, w) - d).min() < -tol * scale:
                 continue
-            nrm = float(w @ w)
+            nrm = dense.dot(w, w)
             if best is None or nrm < best[0] - 1e-15:
                 best = (nrm, w)
         if best is not None:

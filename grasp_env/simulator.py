@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 
 import numpy as np
 
@@ -35,6 +36,7 @@ from grasp_env import mechanics as mech
 from grasp_env import qp
 from grasp_env.errors import SolverError
 from grasp_env.scene import Scene, load_scene
+from grasp_env.sim import dense, placement, pose
 from grasp_env.state import Event, State
 from grasp_env.width import object_width
 
@@ -56,6 +58,12 @@ class SimulationError(RuntimeError):
     """The simulator could not continue (a solve failed even on the fallbacks)."""
 
 
+class WorkLimitError(SimulationError):
+    """A move needed more work than its budget (``max_solves`` pose solves, ``max_iterations``
+    increments, or ``STALL`` increments without progress): it cannot be followed in bounded
+    time. Deterministic, so it is not retried."""
+
+
 class Simulator:
     """Quasi-static frictionless grasp simulator for one scene.
 
@@ -70,6 +78,9 @@ class Simulator:
         fall_step: largest object displacement of one step of a fall, relative to the object's
             size (default 0.02).
         max_iterations: safety cap on increments per move (default 10000).
+        max_solves: cap on pose solves (Newton runs) per call of :meth:`move_hand` or
+            :meth:`settle`, the retry included (default 20000). A move that needs more
+            raises :class:`WorkLimitError`; it bounds the time of any one call.
         lp_solver: ``"fast"`` (exact basis enumeration, :mod:`grasp_env.fastlp`) or ``"highs"``
             (the reference path through scipy's HiGHS) for the motion LP.
     """
@@ -81,6 +92,7 @@ class Simulator:
         max_step: float = 0.25,
         fall_step: float = 0.02,
         max_iterations: int = 10000,
+        max_solves: int = 20000,
         lp_solver: str = "fast",
     ) -> None:
         self.scene = load_scene(scene)
@@ -99,8 +111,12 @@ class Simulator:
         self.tol = float(contact_tol) * L
         self.max_step = float(max_step)
         self.max_iterations = int(max_iterations)
+        if not (isinstance(max_solves, int) and max_solves > 0):
+            raise ValueError(f"max_solves must be a positive int, got {max_solves!r}")
+        self.max_solves = max_solves
+        self._solves = [0]  # pose solves of the current call, shared with a retry's copy
         verts = self.scene.object.vertices_B
-        self.size = float(np.linalg.norm(verts, axis=1).max())
+        self.size = float(geo.norms(verts).max())
         self.fall_step = float(fall_step) * self.size
         self.rho = mech.gyration_radius(self.scene)
         self.weight = self.scene.object_weight
@@ -110,10 +126,11 @@ class Simulator:
         self.newton_tol = max(1e-3 * self.tol, 64 * np.finfo(float).eps * L)
         self._scale = np.array([1.0, 1.0, 1.0 / self.rho])  # twist -> scaled twist rows
         self._placements: dict[tuple[bytes, bytes], ct.Placement] = {}
+        self._local = ct.local_geometry(self.scene)
         # Sweep bounds: how far any hand vertex lies from its body's frame origin (palm,
         # joints), and the thinnest of the bodies, which a step may not jump across.
         polys = kin.hand_polygons_local(self.scene)
-        self._reach = np.array([float(np.linalg.norm(p, axis=1).max()) for p in polys])
+        self._reach = np.array([float(geo.norms(p).max()) for p in polys])
         self._thinnest = min(
             object_width(self.scene),
             self.scene.palm.thickness,
@@ -143,6 +160,7 @@ class Simulator:
         q = np.asarray(object_pose, dtype=float).copy()
         h = np.asarray(hand, dtype=float).copy()
         events: list[Event] = []
+        self._solves[0] = 0
         q = self._fall_if_needed(q, h, 0.0, events)
         return self._make_state(q, h, events)
 
@@ -179,11 +197,14 @@ class Simulator:
         s_end, blocked = self._support_limit(h0, h1)
         touching = [c.key for c in state.contacts]  # detected at (q, h0) by _make_state
         start = events.copy()
+        self._solves[0] = 0
         try:
             q, s_reached, jammed = self._advance(
                 state.object_pose.copy(), h0, h1, s_end, events, touching
             )
             return self._finish(q, h0, h1, s_reached, s_end, events, jammed, blocked)
+        except WorkLimitError:
+            raise  # the retry would do the same work again, and more
         except (SimulationError, SolverError) as first:
             # A failed solve: once more on the reference LP path with smaller increments
             # (nothing of the failed attempt is kept); a second failure is reported.
@@ -193,6 +214,8 @@ class Simulator:
                     state.object_pose.copy(), h0, h1, s_end, events, None
                 )
                 return careful._finish(q, h0, h1, s_reached, s_end, events, jammed, blocked)
+            except WorkLimitError:
+                raise
             except (SimulationError, SolverError) as second:
                 raise SimulationError(
                     f"move failed ({first}) and again on the reference path with smaller "
@@ -272,7 +295,7 @@ class Simulator:
             if s > mark[0] + CHATTER_DS:
                 mark = (s, it)
             elif it - mark[1] > STALL:
-                raise SimulationError(
+                raise WorkLimitError(
                     f"no progress after {STALL} increments within {CHATTER_DS:g} of s = {s}"
                 )
             h = h0 + s * dh
@@ -392,7 +415,7 @@ class Simulator:
             events.append(Event(event.kind, s_star, event.contacts))
             q, s = q_star, s_star
             banned, losing, forced = set(), None, set()
-        raise SimulationError(f"no progress after {self.max_iterations} increments (s = {s})")
+        raise WorkLimitError(f"no progress after {self.max_iterations} increments (s = {s})")
 
     def _jam(self, q: np.ndarray, h: np.ndarray, s: float) -> tuple[np.ndarray, float, bool]:
         """The hand stops at a jam; the object must be held there (at a fold by forces
@@ -461,7 +484,7 @@ class Simulator:
         except SolverError:
             w = res.velocity / self._scale
         v = w * self._scale
-        slack = V @ v - xi
+        slack = dense.matvec(V, v) - xi
         tight = pos | (slack <= 1e-9 * max(1.0, float(np.abs(xi).max(initial=0.0))))
         E = [k for k, t in zip(keys, tight, strict=True) if t]
         return res.value, E, v
@@ -495,35 +518,65 @@ class Simulator:
 
     # ------------------------------------------------------------------ Newton
     def _newton(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
-        """Solve ``phi_E(q, h) = 0`` from ``q0`` (least-motion steps); None if it fails."""
-        q = q0.copy()
+        """Solve ``phi_E(q, h) = 0`` from ``q0`` (least-motion steps); None if it fails.
+
+        Three or more object vertices on one straight edge (a flat side on the support or on
+        a finger, whose middle vertices may bulge by less than the tolerance) are one
+        supporting edge: their equations are dependent and, off the line by rounding or a
+        bulge, inconsistent. Newton then solves for the edge's two outermost contacts, and
+        the pose is accepted when the middle ones lie within tolerance as well.
+        """
         if not E:
+            return q0.copy()
+        core = self._supporting_pairs(q0, h, E)
+        q = self._newton_on(q0, h, core)
+        if q is None or core is E:
             return q
-        last = np.inf
-        for _ in range(30):
-            P, N, F = self._gaps(q, h, E)
-            res = np.abs(F).max()
-            if res <= self.newton_tol:
-                return q
-            if len(E) > 3 and res <= 0.5 * self.tol and res > 0.5 * last:
-                # stalled within tolerance: an over-determined set (more than three contacts)
-                # consistent only to the contacts' own tolerance
-                return q
-            last = res
-            J = mech.V_ob(P, N, q[:2]) * self._scale
-            if len(E) == 3 and abs(np.linalg.det(J)) > 1e-8:
-                du = np.linalg.solve(J, -F)  # square and well conditioned: no SVD needed
-            else:
-                du, *_ = np.linalg.lstsq(J, -F, rcond=1e-12)
-            if np.abs(du).max() > self.size:
-                return None  # a near-singular step far outside Newton's basin
-            q = q + du * self._scale
-            if not np.all(np.isfinite(q)):
-                return None
-        return None
+        return q if np.abs(self._gaps(q, h, E)[2]).max() <= self.tol else None
+
+    def _supporting_pairs(self, q: np.ndarray, h: np.ndarray, E: list) -> list:
+        """``E`` with the contacts of each straight edge that holds three or more object
+        vertices reduced to its outermost two (``E`` itself when there are none)."""
+        groups: dict[tuple[int, int], list[int]] = {}
+        for i, k in enumerate(E):
+            if k[1] == ct.EDGE:
+                groups.setdefault((k[0], k[3]), []).append(i)
+        if all(len(g) < 3 for g in groups.values()):
+            return E
+        P = self._gaps(q, h, E)[0]
+        drop: set[int] = set()
+        for g in groups.values():
+            if len(g) >= 3:
+                far = max(
+                    itertools.combinations(g, 2),
+                    key=lambda ij: float(np.abs(P[ij[0]] - P[ij[1]]).sum()),
+                )
+                drop.update(i for i in g if i not in far)
+        return [k for i, k in enumerate(E) if i not in drop]
+
+    def _count_solve(self) -> None:
+        """Charge one pose solve to the current call's budget (``max_solves``)."""
+        self._solves[0] += 1
+        if self._solves[0] > self.max_solves:
+            raise WorkLimitError(f"the move needs more than {self.max_solves} pose solves")
+
+    def _newton_on(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
+        """Newton's method on the gap equations of ``E`` (:func:`grasp_env.sim.pose.newton`)."""
+        self._count_solve()
+        g = self._local
+        q, ok = pose.newton(
+            g.points, g.body, g.n_object, g.n_vertices, g.half, q0, h, _key_array(E),
+            self._scale, self.newton_tol, self.tol, self.size,
+        )  # fmt: skip
+        return q if ok else None
 
     def _solve_pose(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
         """The object pose on the path with active set ``E``: held by ``E`` in equilibrium."""
+        if E and all(k[0] == geo.SUPPORT for k in E):
+            # Resting on the support alone, the object does not move while the hand moves
+            # (the plan's velocity is zero): the pose that met the contacts still does.
+            if np.abs(self._gaps(q0, h, E)[2]).max() <= self.tol:
+                return q0
         if 0 < len(E) < 3:
             q = self._newton_held(q0, h, E)
             if q is not None:
@@ -531,62 +584,27 @@ class Simulator:
         return self._newton(q0, h, E)
 
     def _newton_held(self, q0: np.ndarray, h: np.ndarray, E: list) -> np.ndarray | None:
-        """Pose held by fewer than three contacts: solve ``phi_E(q, h) = 0`` together with the
-        object's equilibrium ``W_E(q) lam = w`` (the KKT conditions of the least potential
-        energy on the contacts' family of poses); None if Newton fails.
+        """Pose held by fewer than three contacts: their gap equations together with the
+        object's equilibrium (:func:`grasp_env.sim.pose.newton_held`); None if Newton fails.
 
         With ``|E| < 3`` the gap equations leave the object ``3 - |E|`` free directions, and
         quasi-static motion keeps it at the potential's minimum along them; the equilibrium
-        equations close the system (unknowns ``q`` and ``lam``, ``|E| + 3`` equations). The
-        Jacobian is exact: an edge contact's wrench ``(n, r x n)`` turns with the object only
-        through ``r`` (``d(r x n)/dtheta = -r . n``), a tip contact's through its normal
-        (``dn/dtheta = k x n``, ``d(r x n)/d(x, y) = (-n_y, n_x)``, ``d(r x n)/dtheta = r . n``).
+        equations close the system.
         """
-        m = len(E)
-        rows = np.array([1.0, 1.0, 1.0 / self.rho])  # force, force, moment / rho
-        g = self._gravity / self.weight
-        tip = np.array([k[1] == ct.TIP for k in E])
-        q = q0.copy()
-        lam = None
-        for _ in range(30):
-            P, N, F = self._gaps(q, h, E)
-            r = P - q[:2]
-            W = mech.V_ob(P, N, q[:2]).T  # (3, m) wrench columns
-            if lam is None:
-                lam = _independent_forces(W, g)
-                if lam is None:
-                    lam, *_ = np.linalg.lstsq(W, g, rcond=None)
-            eq = (W @ lam - g) * rows
-            if np.abs(F).max() <= self.newton_tol and np.abs(eq).max() <= 1e-12:
-                return q
-            rn = (r * N).sum(axis=1)
-            dW = np.zeros((m, 3, 3))  # dW[i, :, k] = d w_i / d q_k
-            dW[~tip, 2, 2] = -rn[~tip]
-            dW[tip, 2, 0], dW[tip, 2, 1] = -N[tip, 1], N[tip, 0]
-            dW[tip, 0, 2], dW[tip, 1, 2], dW[tip, 2, 2] = -N[tip, 1], N[tip, 0], rn[tip]
-            J = np.zeros((m + 3, 3 + m))
-            J[:m, :3] = W.T * self._scale
-            J[m:, :3] = np.einsum("i,ijk->jk", lam, dW) * self._scale * rows[:, None]
-            J[m:, 3:] = W * rows[:, None]
-            try:
-                dz = np.linalg.solve(J, -np.concatenate((F, eq)))
-            except np.linalg.LinAlgError:
-                return None
-            du = dz[:3]
-            if not np.all(np.isfinite(dz)) or np.abs(du).max() > self.size:
-                return None
-            q = q + du * self._scale
-            lam = lam + dz[3:]
-        return None
+        self._count_solve()
+        g = self._local
+        q, ok = pose.newton_held(
+            g.points, g.body, g.n_object, g.n_vertices, g.half, q0, h, _key_array(E),
+            self._scale, self.rho, self._gravity / self.weight, self.newton_tol, self.size,
+        )  # fmt: skip
+        return q if ok else None
 
     def _gaps(self, q: np.ndarray, h: np.ndarray, E: list):
         """Points, normals and gaps of the contacts ``E`` at ``(q, h)``."""
-        pl = self._place(q, h)
-        F = np.empty(len(E))
-        P = np.empty((len(E), 2))
-        N = np.empty((len(E), 2))
-        for i, key in enumerate(E):
-            P[i], N[i], F[i], _, _ = pl.evaluate(key)
+        g = self._local
+        P, N, F, _, _ = placement.contact_rows(
+            self._place(q, h).world, g.n_object, g.n_vertices, _key_array(E)
+        )
         return P, N, F
 
     # ------------------------------------------------------------------ consistency
@@ -623,7 +641,8 @@ class Simulator:
             g = self._gravity
             lam = _independent_forces(W, g) if len(E) <= 3 else None
             if lam is not None:
-                res = float(np.linalg.norm(W @ lam - g))
+                r = dense.matvec(W, lam) - g
+                res = math.sqrt(dense.dot(r, r))
                 i = int(np.argmin(lam))
                 out[("lost_contact", E[i])] = -lam[i] * scale
             else:
@@ -697,10 +716,10 @@ class Simulator:
         pl = self._place(q, h)
         P, N, _ = _arrays(pl, E)
         W = mech.V_ob(P, N, q[:2]).T
-        if abs(np.linalg.det(W * self._scale[:, None])) < 1e-8:
+        if abs(dense.det(W * self._scale[:, None])) < 1e-8:
             return False
-        lam = np.linalg.solve(W, self._gravity)
-        return bool(lam.min() > 1e-6 * self.weight)
+        lam, ok = dense.solve(W, self._gravity)
+        return ok and bool(lam.min() > 1e-6 * self.weight)
 
     def _nudge_and_fall(self, q, s, E, v, h0, dh, s_end, events):
         """Nudge the hand past the boundary of equilibrium (:meth:`_nudge`) and let the
@@ -803,10 +822,11 @@ class Simulator:
             best, best_event = None, False
             for choice in choices:
                 a, E = self._descent(pl, choice)
-                if np.linalg.norm(a) < 1e-13:
+                norm_a = math.sqrt(dense.dot(a, a))
+                if norm_a < 1e-13:
                     continue  # gravity is balanced to first order by this choice
                 # backtracking: near a stable rest (a cradle) a full step overshoots
-                d = a * self._scale / np.linalg.norm(a) * self.fall_step
+                d = a * self._scale / norm_a * self.fall_step
                 for _ in range(50):
                     q_new, at_event = self._fall_step(q, h, E, d)
                     if q_new[1] < q[1] - 1e-12 * self.size:
@@ -829,7 +849,7 @@ class Simulator:
                 events.append(Event("fall_end", s, tuple(keys)))
                 return q
             q = best
-        raise SimulationError("fall did not come to rest")
+        raise WorkLimitError("fall did not come to rest")
 
     def _at_end(self, pl: ct.Placement, key) -> bool:
         """Whether contact ``key``'s point lies within two tolerances of an end of its edge."""
@@ -860,11 +880,11 @@ class Simulator:
         p, n, _ = _arrays(pl, keys)
         Cs = mech.V_ob(p, n, pl.com_W) * self._scale
         try:
-            w = qp.least_norm(np.zeros((0, 3)), np.zeros(0), Cs, -Cs @ g_scaled)
+            w = qp.least_norm(np.zeros((0, 3)), np.zeros(0), Cs, -dense.matvec(Cs, g_scaled))
         except SolverError as exc:
             raise SimulationError("fall direction infeasible") from exc
         a = w + g_scaled
-        tight = (Cs @ a) <= 1e-10
+        tight = dense.matvec(Cs, a) <= 1e-10
         return a, [k for k, t in zip(keys, tight, strict=True) if t]
 
     def _fall_step(self, q: np.ndarray, h: np.ndarray, E: list, d: np.ndarray):
@@ -943,7 +963,11 @@ class Simulator:
         if len(keys) <= 3:
             # independent wrenches: the only forces in equilibrium, if non-negative
             lam = _independent_forces(V.T, g)
-            if lam is not None and lam.min() >= 0.0 and np.abs(V.T @ lam - g).max() <= self.ftol:
+            if (
+                lam is not None
+                and lam.min() >= 0.0
+                and np.abs(dense.rmatvec(V, lam) - g).max() <= self.ftol
+            ):
                 return lam
         # min 1^T lam s.t. V^T lam = (0, W, 0), lam >= 0: the force LP with xi = -1, solved
         # through its primal (min W v_y s.t. V v >= -1) by the same motion LP as the steps.
@@ -965,37 +989,21 @@ def _event(trigger: tuple, s: float) -> Event:
 
 
 def _independent_forces(W: np.ndarray, g: np.ndarray) -> np.ndarray | None:
-    """Least-squares forces ``lam`` with ``W lam ~ g`` for up to three contact wrenches (the
-    columns of ``W``), or None when the wrenches are dependent. This runs in every
-    consistency check, so well-conditioned cases use closed forms: three wrenches a direct
-    solve after a unit-column volume test (> 1e-10), fewer the normal equations when the
-    unit-column Gram determinant exceeds 1e-6 (squaring the condition number is harmless
-    there); the rest goes through the SVD."""
-    m = W.shape[1]
-    norms = np.sqrt((W * W).sum(axis=0))
-    if norms.min() == 0.0:
-        return None
-    U = W / norms
-    if m == 3:
-        if abs(np.linalg.det(U)) <= 1e-10:
-            return None
-        return np.linalg.solve(W, g)
-    G = U.T @ U
-    if np.linalg.det(G) > 1e-6:
-        return np.linalg.solve(G, U.T @ g) / norms
-    if np.linalg.matrix_rank(W, tol=1e-10) < m:
-        return None
-    return np.linalg.lstsq(W, g, rcond=None)[0]
+    """Forces of up to three independent contact wrenches (the columns of ``W``) balancing
+    ``g`` in least squares, or None when the wrenches are dependent
+    (:func:`grasp_env.sim.pose.independent_forces`)."""
+    lam, ok = pose.independent_forces(np.ascontiguousarray(W), g)
+    return lam if ok else None
 
 
 def _nnls(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, float]:
-    """``scipy.optimize.nnls``, imported on first use (scipy.optimize costs a second to
-    import; ``import grasp_env`` should not)."""
-    from scipy.optimize import nnls
+    """Non-negative least squares ``min |W lam - g|, lam >= 0`` and its residual norm."""
+    return dense.nnls(np.ascontiguousarray(W), g)
 
-    if W.shape[1] == 0:  # no contacts; scipy 1.17's nnls aborts the process on this
-        return np.zeros(0), float(np.linalg.norm(g))
-    return nnls(W, g)
+
+def _key_array(keys: list) -> np.ndarray:
+    """Contact keys as the int rows the compiled kernels take, shape (m, 4)."""
+    return np.array(keys, dtype=np.int64).reshape(-1, 4)
 
 
 def _arrays(pl: ct.Placement, keys: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1043,4 +1051,4 @@ def _finite_vector(value, size: int, name: str) -> np.ndarray:
     return arr
 
 
-__all__ = ["SimulationError", "Simulator"]
+__all__ = ["SimulationError", "Simulator", "WorkLimitError"]

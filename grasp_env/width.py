@@ -62,7 +62,8 @@ def _min_width(vertices_W: np.ndarray) -> tuple[float, np.ndarray]:
     """Width and unit direction ``u_W`` (the inward normal of the flush edge), shape (2,)."""
     n_W = -geo.edge_normals(vertices_W)  # (n, 2) inward unit normals of the edges
     # depth[k, j]: distance of vertex j inside the line of edge k (>= 0 for a convex polygon).
-    depth = (vertices_W @ n_W.T).T - np.sum(vertices_W * n_W, axis=1)[:, None]
+    support = (vertices_W * n_W).sum(axis=1)  # each edge line's offset along its normal
+    depth = (vertices_W[None, :, :] * n_W[:, None, :]).sum(-1) - support[:, None]
     extent = depth.max(axis=1)
     k = int(np.argmin(extent))
     return float(extent[k]), n_W[k].copy()

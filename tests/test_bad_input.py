@@ -1,9 +1,12 @@
-"""Bad input at every boundary of the environment: scenes, env kwargs, reset options, actions.
+"""Bad input at every boundary of the environment: scenes, env kwargs, reset options, seeds,
+actions, through the class and through ``gymnasium.make`` and ``make_vec``.
 
 Each malformed input must be refused with a ``ValueError`` or ``TypeError`` whose message names
-the field and shows the value. After a refused ``reset`` or ``step`` the env must keep working
-exactly as if the call had not happened: a twin env that never saw the bad call, stepped
-with the same actions, must give the same observations and info.
+the field and shows the value (a ``ValueError`` for reset arguments and actions). After a
+refused ``reset`` or ``step`` the env must keep working exactly as if the call had not
+happened: a twin env that never saw the bad call, stepped with the same actions, must give the
+same observations and info; through ``gymnasium.make`` that includes its wrappers (the env
+checker's first-call checks, the time limit).
 """
 
 from __future__ import annotations
@@ -14,10 +17,12 @@ import re
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
 
+from grasp_env.envs import ENV_ID
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 
 SCENES_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenes"
@@ -127,7 +132,36 @@ OPTIONS = [
     ("fingers_inf", {"fingers": (-1.5, -math.inf)}, r"options\['fingers'\]", r"inf"),
     ("scene_clockwise", {"scene": changed(("object", "vertices"), V[::-1])},
      r"object\.vertices", r"clockwise"),
+    # Values that are not real numbers, on every key: refused, never parsed, cast or truncated.
+    ("palm_complex", {"palm": (0.015, 0.9 + 1j, 0.0)}, r"options\['palm'\]", r"0\.9\+1j"),
+    ("palm_complex_array", {"palm": np.array([0.015, 0.9 + 0.5j, 0.0])},
+     r"options\['palm'\]", r"0\.5j"),
+    ("palm_numeric_strings", {"palm": ["0.015", "0.9", "0.0"]}, r"options\['palm'\]",
+     r"'0\.9'"),
+    ("palm_huge_int", {"palm": (0.015, 10**400, 0.0)}, r"options\['palm'\].*finite",
+     r"10000000000"),
+    ("fingers_bools", {"fingers": [False, False]}, r"options\['fingers'\]", r"False"),
+    ("fingers_object_array", {"fingers": np.array([-1.5, -1.5], dtype=object)},
+     r"options\['fingers'\]", r"dtype=object"),
+    ("fingers_none_inside", {"fingers": (-1.5, None)}, r"options\['fingers'\]", r"None"),
+    ("fingers_nested", {"fingers": [[-1.5, -1.5]]}, r"options\['fingers'\]", r"\(1, 2\)"),
+    ("scene_complex", {"scene": 1j}, r"options\['scene'\]", r"1j"),
+    ("scene_huge_int", {"scene": 10**400}, r"options\['scene'\]", r"10000000000"),
+    ("scene_unknown_name", {"scene": "0.1"}, r"options\['scene'\]", r"'0\.1'"),
+    ("scene_complex_gravity", {"scene": changed(("gravity",), 1j)},
+     r"options\['scene'\].*gravity", r"1j"),
+    ("scene_string_density", {"scene": changed(("object", "density"), "2")},
+     r"options\['scene'\].*object\.density", r"'2'"),
+    ("scene_huge_vertex", {"scene": changed(("object", "vertices", 0, 0), 10**400)},
+     r"options\['scene'\].*object\.vertices\[0\]\[0\]", r"10000000000"),
 ]  # fmt: skip
+
+SEEDS = [
+    ("seed_negative", -1, r"seed", r"-1"),
+    ("seed_float", 1.5, r"seed", r"1\.5"),
+    ("seed_string", "3", r"seed", r"'3'"),
+    ("seed_complex", 3j, r"seed", r"3j"),
+]
 
 ACTIONS = [
     ("action_nan", [math.nan, 0.0, 0.0, 0.0, 0.0], r"action", r"nan"),
@@ -137,6 +171,19 @@ ACTIONS = [
     ("action_string", "close", r"action", r"'close'"),
     ("action_none", None, r"action", r"None"),
     ("action_strings", ["a", "b", "c", "d", "e"], r"action", r"'a'"),
+    ("action_complex_array", np.array([1 + 1j, 0, 0, 0, 0]), r"action", r"1\.\+1\.j"),
+    ("action_complex_python", [0.5, 1j, 0.0, 0.0, 0.0], r"action", r"1j"),
+    ("action_complex_scalar", 1 + 1j, r"action", r"\(1\+1j\)"),
+    ("action_numeric_string", "0.1", r"action", r"'0\.1'"),
+    ("action_numeric_strings", ["0.1"] * 5, r"action", r"'0\.1'"),
+    ("action_huge_int", [10**400, 0, 0, 0, 0], r"action.*finite", r"\[10000000000"),
+    ("action_object_array", np.array([0.1] * 5, dtype=object), r"action", r"dtype=object"),
+    ("action_bool_array", np.ones(5, dtype=bool), r"action", r"True"),
+    ("action_bools", [True, False, True, False, True], r"action", r"True"),
+    ("action_none_inside", [0.1, None, 0.1, 0.1, 0.1], r"action", r"None"),
+    ("action_nested", [[0.1] * 5], r"action", r"\(1, 5\)"),
+    ("action_ragged", [[0.1, 0.1], [0.1]], r"action", r"\[\[0\.1, 0\.1\], \[0\.1\]\]"),
+    ("action_nan_float32", np.array([0, 0, np.nan, 0, 0], np.float32), r"action", r"nan"),
 ]
 
 
@@ -145,15 +192,14 @@ def ids(cases: list) -> list[str]:
 
 
 def test_at_least_thirty_cases() -> None:
-    assert len(SCENES) + len(KWARGS) + len(OPTIONS) + len(ACTIONS) >= 30
-    assert len(set(ids(SCENES + KWARGS + OPTIONS + ACTIONS))) == sum(
-        map(len, (SCENES, KWARGS, OPTIONS, ACTIONS))
-    )
+    cases = (SCENES, KWARGS, OPTIONS, SEEDS, ACTIONS)
+    assert sum(map(len, cases)) >= 30
+    assert len({c[0] for group in cases for c in group}) == sum(map(len, cases))
     FrictionlessGraspEnv(scene=copy.deepcopy(BASE))  # the base of the bad scenes is valid
 
 
-def assert_refused(call, field: str, value: str) -> None:
-    with pytest.raises((ValueError, TypeError)) as info:
+def assert_refused(call, field: str, value: str, error: Any = (ValueError, TypeError)) -> None:
+    with pytest.raises(error) as info:
         call()
     msg = message_of(info.value)
     assert re.search(field, msg), f"field {field!r} not named in {msg!r}"
@@ -203,15 +249,60 @@ def test_bad_kwargs_refused(case: str, kwargs: dict, field: str, value: str) -> 
 @pytest.mark.parametrize(("case", "options", "field", "value"), OPTIONS, ids=ids(OPTIONS))
 def test_bad_reset_options_refused(case: str, options: Any, field: str, value: str) -> None:
     env, twin = twin_envs()
-    assert_refused(lambda: env.reset(seed=5, options=options), field, value)
+    error = ValueError if isinstance(options, dict) else TypeError
+    assert_refused(lambda: env.reset(seed=5, options=options), field, value, error)
+    assert_same_after(env, twin)
+
+
+@pytest.mark.parametrize(("case", "seed", "field", "value"), SEEDS, ids=ids(SEEDS))
+def test_bad_seed_refused(case: str, seed: Any, field: str, value: str) -> None:
+    env, twin = twin_envs()
+    assert_refused(lambda: env.reset(seed=seed), field, value, ValueError)
     assert_same_after(env, twin)
 
 
 @pytest.mark.parametrize(("case", "action", "field", "value"), ACTIONS, ids=ids(ACTIONS))
 def test_bad_action_refused(case: str, action: Any, field: str, value: str) -> None:
     env, twin = twin_envs()
-    assert_refused(lambda: env.step(action), field, value)
+    before = env._get_obs()
+    assert_refused(lambda: env.step(action), field, value, ValueError)
+    np.testing.assert_array_equal(env._get_obs(), before)
     assert_same_after(env, twin)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda env: env.step([10**400, 0, 0, 0, 0]),
+        lambda env: env.step(np.zeros((40, 5))),
+        lambda env: env.reset(options={"palm": ["0.1" * 50] * 3}),
+        lambda env: env.reset(options={"scene": 10**400}),
+    ],
+    ids=["action-huge-int", "action-matrix", "palm-long-strings", "scene-huge-int"],
+)
+def test_long_values_are_shortened(call) -> None:
+    env = FrictionlessGraspEnv("fig13", palm_control=True)
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as info:
+        call(env)
+    msg = str(info.value)
+    assert "..." in msg and "\n" not in msg and len(msg) < 200, msg
+
+
+def test_refused_reset_keeps_the_random_generator() -> None:
+    """A reset refused after the scene is known (the hand overlaps the object) neither
+    reseeds nor advances the generator: the next unseeded reset is the twin's."""
+    envs = [FrictionlessGraspEnv("fig13", start="random") for _ in range(2)]
+    for env in envs:
+        env.reset(seed=1)
+    env, twin = envs
+    assert_refused(
+        lambda: env.reset(seed=7, options={"palm": (0.015, 0.3, 0.0)}), r"palm", r"overlaps"
+    )
+    assert env.np_random_seed == twin.np_random_seed == 1
+    (o1, i1), (o2, i2) = env.reset(), twin.reset()
+    np.testing.assert_array_equal(o1, o2)
+    np.testing.assert_array_equal(i1["palm_pose"], i2["palm_pose"])
 
 
 def test_out_of_range_action_is_clipped_not_refused() -> None:
@@ -220,3 +311,126 @@ def test_out_of_range_action_is_clipped_not_refused() -> None:
     o1, *_ = env.step(np.array([7.0, 1.0, -3.0, 0.0, 0.0], dtype=np.float32))
     o2, *_ = twin.step(np.array([1.0, 1.0, -1.0, 0.0, 0.0], dtype=np.float32))
     np.testing.assert_array_equal(o1, o2)
+
+
+# ---------------------------------------------------------------------------------------
+# Through gymnasium.make: the same refusals, and the wrappers it adds are left as they were
+# ---------------------------------------------------------------------------------------
+
+KW = {"scene": "fig13", "palm_control": True}
+MAKERS = {
+    "make": lambda: gym.make(ENV_ID, **KW),
+    "env-checker-time-limit": lambda: gym.make(
+        ENV_ID, disable_env_checker=False, max_episode_steps=50, **KW
+    ),
+    "no-env-checker": lambda: gym.make(ENV_ID, disable_env_checker=True, **KW),
+}
+MAKE_IDS = list(MAKERS)
+
+#: Refused resets: (id, reset kwargs, field regex, value regex).
+RESETS = [
+    ("palm_two_numbers", {"seed": 0, "options": {"palm": [0, 0.7]}}, r"options\['palm'\]",
+     r"\[0, 0\.7\]"),
+    ("palm_overlaps_object", {"seed": 0, "options": {"palm": (0.015, 0.3, 0.0)}}, r"palm",
+     r"overlaps the object"),
+    ("palm_complex", {"options": {"palm": np.array([0.015, 0.9 + 1j, 0.0])}},
+     r"options\['palm'\]", r"1\.j"),
+    ("fingers_strings", {"options": {"fingers": ["-1.5", "-1.5"]}}, r"options\['fingers'\]",
+     r"'-1\.5'"),
+    ("scene_complex", {"options": {"scene": 1j}}, r"options\['scene'\]", r"1j"),
+    ("seed_negative", {"seed": -1}, r"seed", r"-1"),
+]  # fmt: skip
+
+
+def made_twins(make) -> tuple[gym.Env, gym.Env]:
+    envs = make(), make()
+    for env in envs:
+        env.reset(seed=3)
+    return envs
+
+
+@pytest.mark.parametrize("make", MAKERS.values(), ids=MAKE_IDS)
+@pytest.mark.parametrize(("case", "kwargs", "field", "value"), RESETS, ids=ids(RESETS))
+def test_made_env_refused_first_reset(make, case: str, kwargs: dict, field: str, value: str):
+    """A refused first reset leaves the made env as new: reset and step then work (the env
+    checker runs its first-reset and first-step checks) and match a twin's."""
+    env, twin = make(), make()
+    assert_refused(lambda: env.reset(**kwargs), field, value, ValueError)
+    (o1, _), (o2, _) = env.reset(seed=0), twin.reset(seed=0)
+    np.testing.assert_array_equal(o1, o2)
+    env.action_space.seed(0)
+    action = env.action_space.sample()
+    np.testing.assert_array_equal(env.step(action)[0], twin.step(action)[0])
+    assert_same_after(env, twin)
+
+
+@pytest.mark.parametrize("make", MAKERS.values(), ids=MAKE_IDS)
+@pytest.mark.parametrize(("case", "kwargs", "field", "value"), RESETS, ids=ids(RESETS))
+def test_made_env_refused_reset_mid_episode(make, case: str, kwargs: dict, field: str, value):
+    env, twin = made_twins(make)
+    for e in (env, twin):
+        e.step(ACTION)
+    before = env.unwrapped._get_obs()
+    assert_refused(lambda: env.reset(**kwargs), field, value, ValueError)
+    np.testing.assert_array_equal(env.unwrapped._get_obs(), before)
+    assert_same_after(env, twin)
+
+
+def test_made_env_refused_reset_keeps_the_time_limit() -> None:
+    """``TimeLimit`` zeroes its count before passing ``reset`` on: after a refused reset the
+    episode is still truncated at its limit."""
+    env, twin = made_twins(lambda: gym.make(ENV_ID, max_episode_steps=3, **KW))
+    for e in (env, twin):
+        e.step(ACTION)
+    assert_refused(lambda: env.reset(options={"palm": [0, 0.7]}), r"palm", r"0\.7", ValueError)
+    truncated = [(env.step(ACTION)[3], twin.step(ACTION)[3]) for _ in range(2)]
+    assert truncated == [(False, False), (True, True)]
+
+
+@pytest.mark.parametrize("make", MAKERS.values(), ids=MAKE_IDS)
+@pytest.mark.parametrize(("case", "action", "field", "value"), ACTIONS, ids=ids(ACTIONS))
+def test_made_env_bad_action_refused(make, case: str, action: Any, field: str, value: str):
+    """Refused as the first step (the env checker's first-step check comes after it)."""
+    env, twin = made_twins(make)
+    before = env.unwrapped._get_obs()
+    assert_refused(lambda: env.step(action), field, value, ValueError)
+    np.testing.assert_array_equal(env.unwrapped._get_obs(), before)
+    assert_same_after(env, twin)
+
+
+def test_made_env_restore_on_error_is_outermost_once() -> None:
+    env = gym.make(ENV_ID, **KW)
+    again = gym.make(env.spec)  # recreated from its spec: the same stack, no second copy
+    for e in (env, again):
+        assert str(e).count("RestoreOnError") == 1
+        assert str(e).startswith("<RestoreOnError<TimeLimit<OrderEnforcing<PassiveEnvChecker<")
+
+
+def test_make_vec_sync_refusals() -> None:
+    """Through ``make_vec`` (sync): a refused reset or batch of actions (each sub-env's action
+    bad, so that the first sub-env refuses it) leaves the vector env usable and unchanged."""
+    venvs = [gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync", **KW) for _ in range(2)]
+    venv, twin = venvs
+    try:
+        assert_refused(
+            lambda: venv.reset(seed=0, options={"palm": [0, 0.7]}), r"palm", r"0\.7", ValueError
+        )
+        (o1, _), (o2, _) = venv.reset(seed=3), twin.reset(seed=3)
+        np.testing.assert_array_equal(o1, o2)
+        batch = np.stack([ACTION, ACTION])
+        bad_batches = [
+            batch + 1j,
+            np.where(np.eye(2, 5, dtype=bool), np.nan, batch),
+            batch.astype(object),
+            batch.astype(str),
+            batch.astype(bool),
+        ]
+        for bad in bad_batches:
+            assert_refused(lambda bad=bad: venv.step(bad), r"action", r"array", ValueError)
+            np.testing.assert_array_equal(venv.step(batch)[0], twin.step(batch)[0])
+        assert_refused(lambda: venv.reset(options={"fingers": 1j}), r"fingers", r"1j", ValueError)
+        for _ in range(2):
+            np.testing.assert_array_equal(venv.step(batch)[0], twin.step(batch)[0])
+    finally:
+        for v in venvs:
+            v.close()

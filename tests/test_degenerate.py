@@ -1,4 +1,4 @@
-"""Degenerate contact geometry, one test per case of issue 8, each against a closed form.
+"""Degenerate contact geometry, one test per case, each against a closed form.
 
 Every returned state is also checked by :func:`soak.check_state` (independent geometry and
 mechanics). The expected poses, stopping points and contact sets come from the geometry of
@@ -328,3 +328,53 @@ def test_jam_before_the_support_is_not_hand_blocked() -> None:
     assert abs(state.palm_pose[1] - 0.3) <= TOL
     assert state.jammed
     assert not state.hand_blocked, [(e.kind, e.s) for e in state.events]
+
+
+@pytest.mark.parametrize("bulge", [3e-12, 1e-10, 9e-10])
+@pytest.mark.parametrize("where", [0.5, 0.2])
+def test_nearly_straight_resting_edge_is_one_supporting_edge(bulge: float, where: float) -> None:
+    """A resting side of three vertices whose middle one lies ``bulge`` (inside the contact
+    tolerance) below the line through its neighbours rests on all three: their gap
+    equations are dependent and, off the line, inconsistent. They are one supporting edge,
+    not a jam: the hanging fingers close in free space to their targets with no event, the
+    object exactly where it was (nothing but the support touches it); closing on, finger 1
+    reaches the block's top corner and the state stays valid."""
+    x_mid = -0.1 + 0.2 * where
+    block = [[-0.1, bulge], [x_mid, 0.0], [0.1, bulge], [0.1, 0.3], [-0.1, 0.3]]
+    sim = Simulator(scene(block, palm=(0.0, 0.71, 0.0), q=(-HALF_PI, -HALF_PI)))
+    state = sim.reset()
+    assert sorted(c.object_feature for c in contacts_of(state, "support")) == [0, 1, 2]
+    start = state.object_pose.copy()
+    for k in range(1, 6):
+        target = (-HALF_PI + k * 0.05, -HALF_PI - k * 0.05)
+        state = sim.move_hand(state, fingers=target)
+        np.testing.assert_array_equal(state.finger_angles, target)
+        assert state.events == () and not state.jammed
+        np.testing.assert_array_equal(state.object_pose, start)
+        valid(state, f"step {k}")
+    state = sim.move_hand(state, fingers=(-0.6, -HALF_PI))
+    valid(state, "closing onto the block")
+    touched = [e for e in state.events if e.kind == "new_contact" and e.contacts]
+    assert touched and touched[0].contacts[0][0] == 2  # finger 1 reaches the block
+
+
+def test_nearly_straight_resting_edge_through_the_env() -> None:
+    """The same through ``gym.make`` with palm control: the fingers move on every step."""
+    import gymnasium as gym
+
+    from grasp_env.envs.shapes import scene_to_dict
+
+    d = scene_to_dict(grasp_env.load_scene("fig13"))
+    d["object"] = {
+        "vertices": [[-0.1, 1e-10], [0, 0], [0.1, 1e-10], [0.1, 0.1], [-0.1, 0.1]],
+        "density": 1.0,
+    }
+    d["palm"]["pose"] = [0, 0.71, 0]
+    d["fingers"][0]["angle"] = d["fingers"][1]["angle"] = -HALF_PI
+    env = gym.make("FrictionlessGrasp-v0", scene=d, palm_control=True)
+    env.reset(seed=0)
+    for k in range(1, 4):
+        env.step(np.array([1, 1, 0, 0, 0], np.float32))
+        state = env.unwrapped._state
+        assert state.events == ()
+        assert state.finger_angles[0] == pytest.approx(-HALF_PI + k * 0.05)

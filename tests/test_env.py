@@ -17,7 +17,7 @@ import pytest
 
 import grasp_env
 from grasp_env import geometry as geo
-from grasp_env.envs import ENV_ID
+from grasp_env.envs import ENV_ID, WRAPPER_ENTRY_POINT
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv, _observation_bounds
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_convex_polygon
 from grasp_env.planner import close_until_touch
@@ -74,8 +74,11 @@ def test_registered_with_string_entry_point_and_time_limit():
     spec = gym.spec(ENV_ID)
     assert isinstance(spec.entry_point, str)
     assert spec.max_episode_steps == 200
+    # Outside gymnasium's standard wrappers: a refused reset or step leaves them as they were.
+    assert [w.entry_point for w in spec.additional_wrappers] == [WRAPPER_ENTRY_POINT]
     env = gym.make("grasp_env:FrictionlessGrasp-v0", scene="square")
     assert env.unwrapped.scenes[0].name == "square"
+    assert type(env).__name__ == "RestoreOnError"
     env.close()
 
 

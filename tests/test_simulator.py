@@ -851,14 +851,24 @@ def test_one_move_equals_ten_through_events(
     assert contact_set(one) == contact_set(ten)
 
 
-def test_contact_lost_again_and_again_is_dropped() -> None:
+def test_contact_lost_again_and_again_is_dropped(monkeypatch: pytest.MonkeyPatch) -> None:
     """Regression (found by the planner's exploratory search on tall_rectangle): the object
-    leans on finger 1's tip, finger 2's tip and the support while the palm turns. At
-    s = 0.5 finger 2's force reaches zero; the re-planned active set kept the contact, whose
-    force fell to zero again 5e-7 further on, and so on: 10000 increments and 500 s later the
-    move raised SimulationError 'no progress'. The chatter guard drops the contact. The
-    result must agree with the same move cut in 50 pieces (each of which crosses the point
-    with fewer, longer increments)."""
+    leans on finger 1's tip, finger 2's tip and the support while the palm turns, wedged
+    with forces near 7e5 weights. Near s = 0.5 finger 2's force touches zero; the re-planned
+    active set kept the contact, whose force fell to zero again 5e-7 further on, and so on:
+    10000 increments and 500 s later the move raised SimulationError 'no progress'. Whether
+    the force dips below zero at all is decided by rounding there, so the move must simply
+    end after a bounded number of increments, valid, and agree with the same move cut in 50
+    pieces (each of which crosses the point with fewer, longer increments)."""
+    steps = 0
+    try_step = Simulator._try_step
+
+    def counting(self, *args, **kwargs):
+        nonlocal steps
+        steps += 1
+        return try_step(self, *args, **kwargs)
+
+    monkeypatch.setattr(Simulator, "_try_step", counting)
     sim = Simulator(scene_of("tall_rectangle"), max_iterations=MAX_ITERATIONS)
     pose = np.array([0.01998986868443757, 0.25615743936771634, -0.09837377974016227])
     hand = np.array([0.16, 0.77, -0.12, -0.9547500768881969, -2.373256222405706])
@@ -868,7 +878,7 @@ def test_contact_lost_again_and_again_is_dropped() -> None:
     target[2] = -0.16
     one = sim.move_hand(start, palm=target[:3], fingers=target[3:])
     assert_invariants(one, tol_of(sim), "turned palm")
-    assert "lost_contact" in [e.kind for e in one.events]
+    assert steps <= 100, f"{steps} increments for one move"
     fifty = split_move(sim, start, target, 50)
     np.testing.assert_allclose(one.hand, fifty.hand, atol=1e-12)
     np.testing.assert_allclose(one.object_pose, fifty.object_pose, atol=FOLD_POSE_TOL)

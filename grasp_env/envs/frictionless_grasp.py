@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import copy
 import math
 import os
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import seeding
 
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
@@ -79,8 +82,11 @@ class FrictionlessGraspEnv(gym.Env):
 
     The target hand configuration is the current one plus the scaled action, reached by one
     straight-line hand move of the simulator. Actions outside ``[-1, 1]`` are clipped (they act
-    like the bound); NaN or infinite actions raise ``ValueError``. Finger targets beyond the
-    joint limits are clipped there; palm targets are clipped into the workspace
+    like the bound). An action must be real numbers (ints or floats, Python's or numpy's) of
+    the action space's shape: anything else (NaN, inf, an int beyond the float range, a
+    string, a complex number, a bool, None, an object array, another shape) raises
+    ``ValueError`` naming ``action`` and showing it, and changes nothing. Finger targets beyond
+    the joint limits are clipped there; palm targets are clipped into the workspace
     ``|x_p - x0| <= 2 w``, ``0 <= y_p <= 3 w``, ``|theta_p| <= pi/2``. The hand stops short
     when the object jams it or when it would enter the support.
 
@@ -148,8 +154,12 @@ class FrictionlessGraspEnv(gym.Env):
     With ``shape_randomizer`` the object is a new random convex polygon at every reset, in
     the base scene's hand set-up. ``reset(options=...)`` accepts ``{"scene": ..., "palm":
     (x, y, theta), "fingers": (q1, q2)}`` (world units): that scene (no randomizer) and that
-    hand configuration (missing parts from the scene); a hand overlapping the object or the
-    support is refused with ``ValueError``.
+    hand configuration (missing parts from the scene). A bad option (unknown key, a value that
+    is not real numbers as for actions, a bad scene, a hand outside the workspace or joint
+    limits, or overlapping the object or the support) or ``seed`` raises ``ValueError`` naming
+    it. A refused reset changes nothing: the episode in progress, if any, continues as if the
+    call had not happened (same state, same random generator), and the wrappers that
+    ``gymnasium.make`` adds are left as they were (:class:`RestoreOnError`).
 
     ## Episode End
 
@@ -291,7 +301,7 @@ class FrictionlessGraspEnv(gym.Env):
     def _load(self, spec: Any, name: str) -> Scene:
         if not isinstance(spec, str | os.PathLike | dict | Scene):
             raise TypeError(
-                f"{name} must be a bundled name, a path, a dict or a Scene, got {spec!r}"
+                f"{name} must be a bundled name, a path, a dict or a Scene, got {_short(spec)}"
             )
         try:
             scene = load_scene(spec)
@@ -332,7 +342,10 @@ class FrictionlessGraspEnv(gym.Env):
             raise ValueError(f"options: unknown key(s) {unknown}; allowed: {list(_OPTION_KEYS)}")
         out: dict[str, Any] = {}
         if options.get("scene") is not None:
-            out["scene"] = self._load(options["scene"], "options['scene']")
+            try:
+                out["scene"] = self._load(options["scene"], "options['scene']")
+            except TypeError as exc:  # a refused reset argument is a ValueError, as for actions
+                raise ValueError(str(exc)) from None
         for key, size in (("palm", 3), ("fingers", 2)):
             if options.get(key) is not None:
                 out[key] = _vector(options[key], f"options[{key!r}]", size)
@@ -367,47 +380,28 @@ class FrictionlessGraspEnv(gym.Env):
         return h
 
     def _check_action(self, action: Any) -> np.ndarray:
-        try:
-            a = np.asarray(action, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be an array of numbers, got {action!r}") from None
-        if a.shape != self.action_space.shape:
-            raise ValueError(
-                f"action must have shape {self.action_space.shape}, got {action!r} "
-                f"of shape {a.shape}"
-            )
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {action!r}")
-        return np.clip(a, -1.0, 1.0)
+        """The action as floats clipped into [-1, 1]; refused (``ValueError``) unless it is
+        finite real numbers of the action space's shape."""
+        return np.clip(_vector(action, "action", self.action_space.shape[0]), -1.0, 1.0)
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode (see Starting State). A refused reset (bad ``seed`` or ``options``,
+        or a simulator error settling the hand they give) changes nothing: the episode in
+        progress, if any, and the random generator stay as they were. So everything that can
+        fail runs first, drawing from a copy of the generator, and is then committed."""
         opts = self._check_options(options)
+        try:
+            rng = copy.deepcopy(self.np_random) if seed is None else seeding.np_random(seed)[0]
+        except gym.error.Error:
+            raise ValueError(f"seed must be None or an int >= 0, got {_short(seed)}") from None
+        sim, state, error = self._start(rng, opts)
+        analysis = self._analyse(state)
+
         super().reset(seed=seed)
-        if "scene" in opts:
-            scene = opts["scene"]
-            sim, key = Simulator(scene, contact_tol=self.contact_tol), None
-        else:
-            idx = int(self.np_random.integers(len(self.scenes))) if len(self.scenes) > 1 else 0
-            if self.shape_ranges is not None:
-                scene = random_shape_scene(self.np_random, self.scenes[idx], self.shape_ranges)
-                sim, key = Simulator(scene, contact_tol=self.contact_tol), None
-            else:
-                scene, key = self.scenes[idx], idx
-                if idx not in self._sims:
-                    self._sims[idx] = Simulator(scene, contact_tol=self.contact_tol)
-                sim = self._sims[idx]
-        error = None
-        if "palm" in opts or "fingers" in opts:
-            state = sim.settle(scene.object.start_pose, self._check_hand(scene, opts))
-        elif self.start == "scene":
-            state = sim.reset()
-        else:
-            state, error = self._preliftoff(sim, key)
-            if self.start == "random":
-                state = self._perturb(sim, state)
+        self.np_random.bit_generator.state = rng.bit_generator.state  # the draws made above
         self._sim, self._state, self._steps = sim, state, 0
-        self._analysis = self._analyse(state)
+        self._analysis = analysis
         self._y0 = float(state.object_pose[1])
         self._left_support = not self._analysis["on_support"]
         self._success_rewarded = False
@@ -418,6 +412,34 @@ class FrictionlessGraspEnv(gym.Env):
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), info
+
+    def _start(
+        self, rng: np.random.Generator, opts: dict[str, Any]
+    ) -> tuple[Simulator, State, str | None]:
+        """The simulator, start state and pre-liftoff error of a new episode, drawn from
+        ``rng``; changes no episode state (it fills only the simulator and pre-liftoff
+        caches)."""
+        if "scene" in opts:
+            scene = opts["scene"]
+            sim, key = Simulator(scene, contact_tol=self.contact_tol), None
+        else:
+            idx = int(rng.integers(len(self.scenes))) if len(self.scenes) > 1 else 0
+            if self.shape_ranges is not None:
+                scene = random_shape_scene(rng, self.scenes[idx], self.shape_ranges)
+                sim, key = Simulator(scene, contact_tol=self.contact_tol), None
+            else:
+                scene, key = self.scenes[idx], idx
+                if idx not in self._sims:
+                    self._sims[idx] = Simulator(scene, contact_tol=self.contact_tol)
+                sim = self._sims[idx]
+        if "palm" in opts or "fingers" in opts:
+            return sim, sim.settle(scene.object.start_pose, self._check_hand(scene, opts)), None
+        if self.start == "scene":
+            return sim, sim.reset(), None
+        state, error = self._preliftoff(sim, key)
+        if self.start == "random":
+            state = self._perturb(sim, state, rng)
+        return sim, state, error
 
     def _preliftoff(self, sim: Simulator, key: int | None) -> tuple[State, str | None]:
         if key is not None and key in self._preliftoff_cache:
@@ -433,14 +455,14 @@ class FrictionlessGraspEnv(gym.Env):
             self._preliftoff_cache[key] = state
         return state, error
 
-    def _perturb(self, sim: Simulator, state: State) -> State:
+    def _perturb(self, sim: Simulator, state: State, rng: np.random.Generator) -> State:
         scene = sim.scene
         w = scene.palm.width
         xy, th, q = RANDOM_PALM_XY * w, RANDOM_PALM_THETA, RANDOM_FINGER
         scale = np.array([xy, xy, th, q, q])
         lim = scene.joint_limits
         for _ in range(RANDOM_START_TRIES):
-            h = state.hand + self.np_random.uniform(-1.0, 1.0, 5) * scale
+            h = state.hand + rng.uniform(-1.0, 1.0, 5) * scale
             h[3:] = np.clip(h[3:], lim[:, 0], lim[:, 1])
             if _placement_problem(scene, state.object_pose, h) is None:
                 try:
@@ -539,7 +561,7 @@ class FrictionlessGraspEnv(gym.Env):
             "grip": grip,
             "lift": lift,
             "drop": -weights["drop"] if dropped else 0.0,
-            "ctrl": -weights["ctrl"] * float(a @ a),
+            "ctrl": -weights["ctrl"] * float((a * a).sum()),
         }
         reward_info = {f"reward_{k}": float(v) for k, v in terms.items()}
         return float(sum(reward_info.values())), reward_info
@@ -665,6 +687,42 @@ class _NaN(float):
 NAN = _NaN()
 
 
+class RestoreOnError(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """The outermost wrapper ``gymnasium.make`` puts on ``FrictionlessGrasp-v0``: a ``reset``
+    or ``step`` that raises (refused input) leaves the wrappers inside it as they were.
+
+    gymnasium's wrappers note a call before passing it on: ``PassiveEnvChecker`` marks its
+    first-reset check done, ``TimeLimit`` zeroes its step count, ``OrderEnforcing`` marks the
+    env reset. After a refused first reset the checker has no reset data for its first-step
+    check (a ``TypeError`` at every step); after a refused reset mid-episode the time limit
+    starts over. The env changes nothing on a refused call; this restores the attributes of
+    the wrappers in between.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.Wrapper.__init__(self, env)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        return self._restoring(self.env.reset, seed=seed, options=options)
+
+    def step(self, action: Any):
+        return self._restoring(self.env.step, action)
+
+    def _restoring(self, call: Callable, *args: Any, **kwargs: Any) -> Any:
+        saved, env = [], self.env
+        while isinstance(env, gym.Wrapper):
+            saved.append((env, vars(env).copy()))
+            env = env.env
+        try:
+            return call(*args, **kwargs)
+        except Exception:
+            for wrapper, attributes in saved:
+                vars(wrapper).clear()
+                vars(wrapper).update(attributes)
+            raise
+
+
 # ---------------------------------------------------------------------- helpers
 def _in_palm_frame(state: State) -> np.ndarray:
     """Object pose ``(x, y, theta)`` in the palm frame."""
@@ -705,9 +763,10 @@ def _observation_bounds(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _short(spec: Any) -> str:
+    """``repr`` of a value for an error message: on one line, at most 80 characters."""
     if isinstance(spec, Scene):
         return repr(spec.name)
-    text = repr(spec)
+    text = " ".join(repr(spec).split())
     return text if len(text) <= 80 else text[:77] + "..."
 
 
@@ -725,13 +784,16 @@ def _number(
     lo_open: bool = True,
     hi_open: bool = False,
 ) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise TypeError(f"{name} must be a number, got {value!r}")
-    x = float(value)
+    if not _is_real(value):
+        raise TypeError(f"{name} must be a number, got {_short(value)}")
+    try:
+        x = float(value)
+    except OverflowError:  # an int beyond the float range
+        x = math.inf
     ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)
     if not ok:
         interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-        raise ValueError(f"{name} must be finite and in {interval}, got {value!r}")
+        raise ValueError(f"{name} must be finite and in {interval}, got {_short(value)}")
     return x
 
 
@@ -741,15 +803,43 @@ def _numbers(value: Any, name: str, size: int, lo: float, hi: float) -> np.ndarr
     return np.array([_number(v, f"{name}[{i}]", lo, hi) for i, v in enumerate(value)])
 
 
+#: What counts as a real number, as a Python or numpy scalar and as an array's ``dtype.kind``:
+#: an int or a float, not a bool, a string, a complex number or anything else.
+_REAL_TYPES = (int, float, np.integer, np.floating)
+_REAL_KINDS = "iuf"
+
+
+def _is_real(value: Any) -> bool:
+    """Whether a scalar is a real number (see ``_REAL_TYPES``)."""
+    return isinstance(value, _REAL_TYPES) and not isinstance(value, bool)
+
+
 def _vector(value: Any, name: str, size: int) -> np.ndarray:
+    """``value`` as ``size`` finite floats, or ``ValueError`` naming ``name`` and showing the
+    value: a sequence of real numbers (:func:`_is_real`) or an int or float array. Strings,
+    complex numbers, bools, None and object arrays are refused rather than parsed or cast (a
+    complex number would lose its imaginary part, a bool would act as 0 or 1)."""
+    is_array = isinstance(value, np.ndarray)
     try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be {size} numbers, got {value!r}") from None
+        arr = value if is_array else np.asarray(value, dtype=object)
+    except (TypeError, ValueError):  # nesting numpy cannot even hold as objects
+        raise ValueError(f"{name} must be {size} real numbers, got {_short(value)}") from None
     if arr.shape != (size,):
-        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise ValueError(
+            f"{name} must be {size} real numbers, got {_short(value)} of shape {arr.shape}"
+        )
+    if not (arr.dtype.kind in _REAL_KINDS if is_array else all(map(_is_real, arr))):
+        raise ValueError(
+            f"{name} must be real numbers (int or float; not bool, str, complex or object), "
+            f"got {_short(value)}"
+        )
+    try:
+        with np.errstate(over="ignore"):
+            arr = arr.astype(float)
+    except OverflowError:  # an int beyond the float range
+        arr = np.full(size, math.inf)
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be finite, got {_short(value)}")
     return arr
 
 
@@ -785,4 +875,4 @@ def _shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float
     return out
 
 
-__all__ = ["FrictionlessGraspEnv"]
+__all__ = ["FrictionlessGraspEnv", "RestoreOnError"]

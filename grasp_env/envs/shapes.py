@@ -68,7 +68,7 @@ def random_convex_polygon(
     v = np.stack([np.cos(angles), ratio * np.sin(angles)], axis=1)
     c = geo.polygon_centroid(v)
     d = np.roll(v, -1, axis=0) - v
-    length = np.linalg.norm(d, axis=1)
+    length = geo.norms(d)
     t = ((c - v) * d).sum(axis=1) / length**2  # centroid's projection along each edge
     margin = np.minimum(t, 1.0 - t)
     stable = np.flatnonzero(margin >= STABILITY_MARGIN)
@@ -79,10 +79,10 @@ def random_convex_polygon(
         k = int(rng.choice(stable))
     # Turn edge k's outward normal to (0, -1) and make its start vertex 0.
     normal = geo.edge_normals(v)[k]
-    v = v @ geo.rot(-0.5 * math.pi - math.atan2(normal[1], normal[0])).T
+    v = geo.rotate(v, -0.5 * math.pi - math.atan2(normal[1], normal[0]))
     v = np.roll(v, -k, axis=0)
     v = v - np.array([geo.polygon_centroid(v)[0], v[0, 1]])
-    diameter = float(np.linalg.norm(v[:, None] - v[None], axis=-1).max())
+    diameter = float(geo.norms(v[:, None] - v[None]).max())
     v = v * (rng.uniform(size[0], size[1]) / diameter)
     v[:2, 1] = 0.0
     return v

@@ -1,0 +1,303 @@
+"""Small dense linear algebra without BLAS or LAPACK, compiled with numba.
+
+The simulator's matrices are tiny (3 to 6 rows or columns), and its discrete decisions
+(contact sets, jams, falls) compare results with tolerances. numpy's ``@``, ``dot``,
+``linalg`` and scipy's ``nnls`` go through the machine's BLAS/LAPACK, whose kernels round
+differently from one processor (or ``OPENBLAS_CORETYPE``) to another, so a decision near a
+threshold could flip with the machine. Every routine here is plain arithmetic in a fixed
+order: the same inputs give the same bits on every machine (numba does not contract
+multiply-adds into FMAs without ``fastmath``). With ``NUMBA_DISABLE_JIT=1`` the same source
+runs as Python, which is how to debug it.
+
+Each routine is checked against its numpy/scipy counterpart in the tests.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+EPS = float(np.finfo(float).eps)
+
+#: One-sided Jacobi sweeps before giving up (each sweep squares the off-diagonal size).
+_SWEEPS = 60
+
+
+@njit(cache=True)
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``a . b`` for 1-D arrays, summed in index order."""
+    out = 0.0
+    for i in range(a.shape[0]):
+        out += a[i] * b[i]
+    return out
+
+
+@njit(cache=True)
+def matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A x`` for a 2-D ``A``."""
+    m, n = A.shape
+    out = np.zeros(m)
+    for i in range(m):
+        acc = 0.0
+        for j in range(n):
+            acc += A[i, j] * x[j]
+        out[i] = acc
+    return out
+
+
+@njit(cache=True)
+def rmatvec(A: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``A^T y`` for a 2-D ``A``."""
+    m, n = A.shape
+    out = np.zeros(n)
+    for j in range(n):
+        acc = 0.0
+        for i in range(m):
+            acc += A[i, j] * y[i]
+        out[j] = acc
+    return out
+
+
+@njit(cache=True)
+def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A B`` for 2-D arrays."""
+    m, k = A.shape
+    n = B.shape[1]
+    out = np.zeros((m, n))
+    for i in range(m):
+        for j in range(n):
+            acc = 0.0
+            for p in range(k):
+                acc += A[i, p] * B[p, j]
+            out[i, j] = acc
+    return out
+
+
+@njit(cache=True)
+def _lu(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """LU factors of a square ``A`` with partial pivoting: ``(LU, perm, sign)``; an exactly
+    zero pivot leaves its column unreduced (the determinant is then 0)."""
+    n = A.shape[0]
+    LU = A.copy()
+    perm = np.arange(n)
+    sign = 1.0
+    for k in range(n):
+        p = k
+        best = abs(LU[k, k])
+        for i in range(k + 1, n):
+            if abs(LU[i, k]) > best:
+                best, p = abs(LU[i, k]), i
+        if p != k:
+            for j in range(n):
+                LU[k, j], LU[p, j] = LU[p, j], LU[k, j]
+            perm[k], perm[p] = perm[p], perm[k]
+            sign = -sign
+        if LU[k, k] == 0.0:
+            continue
+        for i in range(k + 1, n):
+            f = LU[i, k] / LU[k, k]
+            LU[i, k] = f
+            for j in range(k + 1, n):
+                LU[i, j] -= f * LU[k, j]
+    return LU, perm, sign
+
+
+@njit(cache=True)
+def det(A: np.ndarray) -> float:
+    """Determinant of a square ``A`` (LU with partial pivoting)."""
+    LU, _, sign = _lu(A)
+    out = sign
+    for k in range(A.shape[0]):
+        out *= LU[k, k]
+    return out
+
+
+@njit(cache=True)
+def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
+    """``x`` with ``A x = b`` for a square ``A`` (LU with partial pivoting), and whether it
+    exists: False on an exactly zero pivot or a non-finite result (as LAPACK's
+    ``gesv`` reports a singular matrix)."""
+    n = A.shape[0]
+    LU, perm, _ = _lu(A)
+    x = np.empty(n)
+    for i in range(n):
+        x[i] = b[perm[i]]
+    for i in range(n):
+        for j in range(i):
+            x[i] -= LU[i, j] * x[j]
+    for i in range(n - 1, -1, -1):
+        if LU[i, i] == 0.0:
+            return x, False
+        for j in range(i + 1, n):
+            x[i] -= LU[i, j] * x[j]
+        x[i] /= LU[i, i]
+    for i in range(n):
+        if not math.isfinite(x[i]):
+            return x, False
+    return x, True
+
+
+@njit(cache=True)
+def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Thin singular value decomposition ``A = U diag(s) V^T`` by one-sided Jacobi.
+
+    Returns ``U`` (m, n), ``s`` (n,) in descending order and ``V`` (n, n) (columns are the
+    right singular vectors; note: V, not V^T). Columns of ``U`` for zero singular values
+    are zero. One-sided Jacobi computes small singular values to high relative accuracy and
+    needs no BLAS; for the few columns here it is also fast.
+    """
+    m, n = A.shape
+    U = A.copy()
+    V = np.eye(n)
+    # columns below this squared norm are zero to rounding: rotating them never converges
+    tiny = 0.0
+    for i in range(m):
+        for j in range(n):
+            tiny += A[i, j] * A[i, j]
+    tiny *= (EPS * EPS) * max(m, n)
+    for _ in range(_SWEEPS):
+        rotated = False
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                alpha = 0.0
+                beta = 0.0
+                gamma = 0.0
+                for i in range(m):
+                    alpha += U[i, p] * U[i, p]
+                    beta += U[i, q] * U[i, q]
+                    gamma += U[i, p] * U[i, q]
+                if (
+                    gamma == 0.0
+                    or min(alpha, beta) <= tiny
+                    or abs(gamma) <= EPS * math.sqrt(alpha * beta)
+                ):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for i in range(m):
+                    up, uq = U[i, p], U[i, q]
+                    U[i, p] = c * up - s * uq
+                    U[i, q] = s * up + c * uq
+                for i in range(n):
+                    vp, vq = V[i, p], V[i, q]
+                    V[i, p] = c * vp - s * vq
+                    V[i, q] = s * vp + c * vq
+        if not rotated:
+            break
+    sv = np.empty(n)
+    for j in range(n):
+        acc = 0.0
+        for i in range(m):
+            acc += U[i, j] * U[i, j]
+        sv[j] = math.sqrt(acc)
+    order = np.argsort(-sv, kind="mergesort")
+    s_out = sv[order]
+    U_out = np.zeros((m, n))
+    V_out = np.empty((n, n))
+    for k in range(n):
+        j = order[k]
+        for i in range(n):
+            V_out[i, k] = V[i, j]
+        if s_out[k] > 0.0:
+            for i in range(m):
+                U_out[i, k] = U[i, j] / s_out[k]
+    return U_out, s_out, V_out
+
+
+@njit(cache=True)
+def lstsq(A: np.ndarray, b: np.ndarray, rcond: float) -> tuple[np.ndarray, int]:
+    """Least-norm least-squares solution of ``A x ~ b`` and the rank used.
+
+    Singular values at most ``rcond`` times the largest count as zero (numpy's ``lstsq``
+    convention; ``rcond < 0`` means ``EPS * max(m, n)``).
+    """
+    m, n = A.shape
+    U, s, V = svd(A)
+    if rcond < 0.0:
+        rcond = EPS * max(m, n)
+    cut = rcond * (s[0] if n > 0 else 0.0)
+    x = np.zeros(n)
+    rank = 0
+    for k in range(n):
+        if s[k] <= cut or s[k] == 0.0:
+            continue
+        rank += 1
+        coef = 0.0
+        for i in range(m):
+            coef += U[i, k] * b[i]
+        coef /= s[k]
+        for i in range(n):
+            x[i] += coef * V[i, k]
+    return x, rank
+
+
+@njit(cache=True)
+def rank(A: np.ndarray, tol: float) -> int:
+    """Number of singular values of ``A`` above ``tol`` (an absolute threshold)."""
+    s = svd(A)[1]
+    out = 0
+    for k in range(s.shape[0]):
+        if s[k] > tol:
+            out += 1
+    return out
+
+
+@njit(cache=True)
+def nnls(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
+    """``argmin |A x - b|`` over ``x >= 0`` (Lawson and Hanson's active-set method) and the
+    residual norm.
+
+    The passive-set subproblems are solved by :func:`lstsq` on ``A``'s columns themselves
+    (not the normal equations). Dual values count as positive above a tolerance relative to
+    ``|A| |b|``, so the result does not depend on the problem's units.
+    """
+    m, n = A.shape
+    x = np.zeros(n)
+    if n == 0:
+        return x, math.sqrt(dot(b, b))
+    size = 0.0
+    for i in range(m):
+        for j in range(n):
+            size += A[i, j] * A[i, j]
+    tol = 10.0 * max(m, n) * EPS * math.sqrt(size) * math.sqrt(dot(b, b))
+    passive = np.zeros(n, dtype=np.bool_)
+    for _ in range(3 * n + 3):
+        w = rmatvec(A, b - matvec(A, x))
+        j, best = -1, tol
+        for k in range(n):
+            if not passive[k] and w[k] > best:
+                j, best = k, w[k]
+        if j < 0:
+            break
+        passive[j] = True
+        for _inner in range(3 * n + 3):
+            idx = np.nonzero(passive)[0]
+            if idx.shape[0] == 0:
+                break
+            z = lstsq(A[:, idx].copy(), b, -1.0)[0]
+            if z.min() > 0.0:
+                x[:] = 0.0
+                x[idx] = z
+                break
+            # Move from x towards z until the first passive variable reaches zero, and
+            # return that one (and any other at zero) to the active set.
+            alpha, first = 1.0, idx[0]
+            for t in range(idx.shape[0]):
+                if z[t] <= 0.0:
+                    step = x[idx[t]] / (x[idx[t]] - z[t])
+                    if step < alpha:
+                        alpha, first = step, idx[t]
+            for t in range(idx.shape[0]):
+                x[idx[t]] += alpha * (z[t] - x[idx[t]])
+            x[first] = 0.0
+            for t in range(idx.shape[0]):
+                if x[idx[t]] <= 0.0:
+                    x[idx[t]] = 0.0
+                    passive[idx[t]] = False
+    r = matvec(A, x) - b
+    return x, math.sqrt(dot(r, r))

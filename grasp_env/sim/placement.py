@@ -1,0 +1,110 @@
+"""World geometry of every body, and the gaps of contacts, for an object pose and a hand.
+
+The scene's bodies are stacked once into one array of body-frame points (see
+:class:`grasp_env.contacts.Placement`): the object's vertices, the palm's, finger 1's and
+finger 2's (4 each), then the same bodies' outward edge normals; ``body`` gives each row's
+body (0 object, 1 palm, 2 finger 1, 3 finger 2). One rotation per body places them all.
+
+A contact is a row ``(body, kind, object_feature, hand_feature)`` of an int array ``keys``
+(:mod:`grasp_env.contacts` explains the two kinds); its normal points into the object and
+its gap is positive when the bodies are apart.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+SUPPORT = 0
+EDGE, TIP = 0, 1
+
+
+@njit(cache=True)
+def world_points(
+    points: np.ndarray, body: np.ndarray, n_vertices: int, half: float, q: np.ndarray,
+    h: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """World coordinates of the stacked body-frame ``points`` for object pose ``q`` and hand
+    configuration ``h``; rows before ``n_vertices`` are points (rotated and moved), the rest
+    directions (rotated only). ``half`` is half the palm width (the joints' offset)."""
+    th = h[2]
+    c, s = math.cos(th), math.sin(th)
+    ox = (q[0], h[0], h[0] - c * half, h[0] + c * half)
+    oy = (q[1], h[1], h[1] - s * half, h[1] + s * half)
+    angles = (q[2], th, th + h[3], th + h[4])
+    cos_b = np.empty(4)
+    sin_b = np.empty(4)
+    for b in range(4):
+        cos_b[b] = math.cos(angles[b])
+        sin_b[b] = math.sin(angles[b])
+    out = np.empty_like(points)
+    for i in range(points.shape[0]):
+        b = body[i]
+        x, y = points[i, 0], points[i, 1]
+        out[i, 0] = cos_b[b] * x - sin_b[b] * y
+        out[i, 1] = sin_b[b] * x + cos_b[b] * y
+        if i < n_vertices:
+            if b == 0:
+                out[i, 0] += ox[0]
+                out[i, 1] += oy[0]
+            elif b == 1:
+                out[i, 0] += ox[1]
+                out[i, 1] += oy[1]
+            elif b == 2:
+                out[i, 0] += ox[2]
+                out[i, 1] += oy[2]
+            else:
+                out[i, 0] += ox[3]
+                out[i, 1] += oy[3]
+    return out
+
+
+@njit(cache=True)
+def contact_rows(
+    world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Points (m, 2), normals into the object (m, 2), gaps (m,), edge parameters (m,) and
+    edge lengths (m,) of the contacts ``keys`` (m, 4) at the placement ``world``.
+
+    The edge parameter places the vertex's projection along its edge (0 at the edge's first
+    vertex, 1 at its second); on the support it is 0.5 and the length infinite.
+    """
+    m = keys.shape[0]
+    P = np.empty((m, 2))
+    N = np.empty((m, 2))
+    F = np.empty(m)
+    T = np.empty(m)
+    L = np.empty(m)
+    for i in range(m):
+        body, kind, k, j = keys[i, 0], keys[i, 1], keys[i, 2], keys[i, 3]
+        if kind == EDGE:
+            px, py = world[k, 0], world[k, 1]
+            if body == SUPPORT:
+                P[i, 0], P[i, 1] = px, py
+                N[i, 0], N[i, 1] = 0.0, 1.0
+                F[i], T[i], L[i] = py, 0.5, np.inf
+                continue
+            first = n_object + 4 * (body - 1)
+            a = first + j
+            b = first + (j + 1) % 4
+            nx, ny = world[n_vertices + a, 0], world[n_vertices + a, 1]
+        else:
+            p = n_object + 4 * (body - 1) + j
+            px, py = world[p, 0], world[p, 1]
+            a = k
+            b = (k + 1) % n_object
+            nx, ny = world[n_vertices + a, 0], world[n_vertices + a, 1]
+        dx, dy = world[b, 0] - world[a, 0], world[b, 1] - world[a, 1]
+        rx, ry = px - world[a, 0], py - world[a, 1]
+        L2 = dx * dx + dy * dy
+        P[i, 0], P[i, 1] = px, py
+        F[i] = nx * rx + ny * ry
+        T[i] = (rx * dx + ry * dy) / L2
+        L[i] = L2**0.5
+        if kind == EDGE:
+            N[i, 0], N[i, 1] = nx, ny
+        else:
+            N[i, 0], N[i, 1] = -nx, -ny
+    return P, N, F, T, L

@@ -1,0 +1,175 @@
+"""The object pose on a set of closed contacts: Newton's method on their gap equations.
+
+``phi_E(q, h) = 0`` for the active contacts ``E`` (rows of ``keys``, see
+:mod:`grasp_env.sim.placement`) is solved for the object pose ``q`` with the exact
+Jacobian ``V_ob`` (the gap gradient, rows ``[n_i, r_i x n_i]``), scaled so that a rotation
+counts like a translation of the radius of gyration (``scale = (1, 1, rho)``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from grasp_env.sim import dense
+from grasp_env.sim.placement import TIP, contact_rows, world_points
+
+#: Newton iterations before a solve counts as failed.
+ITERATIONS = 30
+
+
+@njit(cache=True)
+def constraint_matrix(P: np.ndarray, N: np.ndarray, com: np.ndarray) -> np.ndarray:
+    """``V_ob`` (m, 3) (eq. 9): row i maps an object twist to the normal velocity of the
+    object's material point at contact i, ``[n_i, r_i x n_i]`` with ``r_i = p_i - com``."""
+    m = P.shape[0]
+    V = np.empty((m, 3))
+    for i in range(m):
+        rx, ry = P[i, 0] - com[0], P[i, 1] - com[1]
+        V[i, 0] = N[i, 0]
+        V[i, 1] = N[i, 1]
+        V[i, 2] = rx * N[i, 1] - ry * N[i, 0]
+    return V
+
+
+@njit(cache=True)
+def independent_forces(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Least-squares forces ``lam`` with ``W lam ~ g`` for up to three contact wrenches (the
+    columns of ``W``), and False when the wrenches are dependent. Three wrenches: a direct
+    solve after a unit-column volume test (> 1e-10); fewer: the normal equations when the
+    unit-column Gram determinant exceeds 1e-6 (squaring the condition number is harmless
+    there), else least squares after a rank test (1e-10)."""
+    m = W.shape[1]
+    norms = np.empty(m)
+    for j in range(m):
+        norms[j] = math.sqrt(W[0, j] * W[0, j] + W[1, j] * W[1, j] + W[2, j] * W[2, j])
+        if norms[j] == 0.0:
+            return np.zeros(m), False
+    U = W / norms
+    if m == 3:
+        if abs(dense.det(U)) <= 1e-10:
+            return np.zeros(m), False
+        return dense.solve(W, g)
+    G = dense.matmul(U.T.copy(), U)
+    if dense.det(G) > 1e-6:
+        lam, ok = dense.solve(G, dense.rmatvec(U, g))
+        if ok:
+            return lam / norms, True
+    if dense.rank(W, 1e-10) < m:
+        return np.zeros(m), False
+    return dense.lstsq(W, g, -1.0)[0], True
+
+
+@njit(cache=True)
+def newton(
+    points: np.ndarray, body: np.ndarray, n_object: int, n_vertices: int, half: float,
+    q0: np.ndarray, h: np.ndarray, keys: np.ndarray, scale: np.ndarray, newton_tol: float,
+    tol: float, size: float,
+) -> tuple[np.ndarray, bool]:  # fmt: skip
+    """Solve ``phi_E(q, h) = 0`` from ``q0`` by least-motion Newton steps: ``(q, ok)``.
+
+    Converged when every gap is within ``newton_tol``. Dependent equations (more than three
+    contacts, or several on one straight edge) may be consistent only to the contacts' own
+    tolerance: they count as solved when least squares stalls within half of ``tol``. A step
+    larger than the object's ``size`` left Newton's basin.
+    """
+    m = keys.shape[0]
+    q = q0.copy()
+    last = np.inf
+    redundant = False
+    for _ in range(ITERATIONS):
+        world = world_points(points, body, n_vertices, half, q, h)
+        P, N, F, _, _ = contact_rows(world, n_object, n_vertices, keys)
+        res = 0.0
+        for i in range(m):
+            res = max(res, abs(F[i]))
+        if res <= newton_tol:
+            return q, True
+        if redundant and res <= 0.5 * tol and res > 0.5 * last:
+            return q, True
+        last = res
+        J = constraint_matrix(P, N, q[:2])
+        for i in range(m):
+            for k in range(3):
+                J[i, k] *= scale[k]
+        ok = False
+        if m == 3 and abs(dense.det(J)) > 1e-8:
+            du, ok = dense.solve(J, -F)  # square and well conditioned: no SVD needed
+        if not ok:
+            du, rank = dense.lstsq(J, -F, 1e-12)
+            redundant = rank < m
+        if np.abs(du).max() > size:
+            return q, False  # a near-singular step far outside Newton's basin
+        q = q + du * scale
+        for k in range(3):
+            if not math.isfinite(q[k]):
+                return q, False
+    return q, False
+
+
+@njit(cache=True)
+def newton_held(
+    points: np.ndarray, body: np.ndarray, n_object: int, n_vertices: int, half: float,
+    q0: np.ndarray, h: np.ndarray, keys: np.ndarray, scale: np.ndarray, rho: float,
+    g: np.ndarray, newton_tol: float, size: float,
+) -> tuple[np.ndarray, bool]:  # fmt: skip
+    """Pose held by fewer than three contacts: ``phi_E(q, h) = 0`` together with the
+    object's equilibrium ``W_E(q) lam = g`` (the KKT conditions of least potential energy on
+    the contacts' family of poses), by Newton on ``(q, lam)``: ``(q, ok)``.
+
+    ``g`` is the gravity wrench in object weights. The Jacobian is exact: an edge contact's
+    wrench ``(n, r x n)`` turns with the object only through ``r``
+    (``d(r x n)/dtheta = -r . n``), a tip contact's through its normal (``dn/dtheta = k x
+    n``, ``d(r x n)/d(x, y) = (-n_y, n_x)``, ``d(r x n)/dtheta = r . n``).
+    """
+    m = keys.shape[0]
+    rows = np.array([1.0, 1.0, 1.0 / rho])  # force, force, moment / rho
+    q = q0.copy()
+    lam = np.zeros(m)
+    for it in range(ITERATIONS):
+        world = world_points(points, body, n_vertices, half, q, h)
+        P, N, F, _, _ = contact_rows(world, n_object, n_vertices, keys)
+        V = constraint_matrix(P, N, q[:2])
+        W = V.T.copy()  # (3, m) wrench columns
+        if it == 0:
+            lam, ok = independent_forces(W, g)
+            if not ok:
+                lam = dense.lstsq(W, g, -1.0)[0]
+        eq = (dense.matvec(W, lam) - g) * rows
+        if np.abs(F).max() <= newton_tol and np.abs(eq).max() <= 1e-12:
+            return q, True
+        # dM[j, k]: derivative of the equilibrium rows (j) by the pose (k), sum_i lam_i dw_i
+        dM = np.zeros((3, 3))
+        for i in range(m):
+            rn = (P[i, 0] - q[0]) * N[i, 0] + (P[i, 1] - q[1]) * N[i, 1]
+            if keys[i, 1] == TIP:
+                dM[2, 0] += lam[i] * -N[i, 1]
+                dM[2, 1] += lam[i] * N[i, 0]
+                dM[0, 2] += lam[i] * -N[i, 1]
+                dM[1, 2] += lam[i] * N[i, 0]
+                dM[2, 2] += lam[i] * rn
+            else:
+                dM[2, 2] += lam[i] * -rn
+        J = np.zeros((m + 3, 3 + m))
+        rhs = np.empty(m + 3)
+        for i in range(m):
+            for k in range(3):
+                J[i, k] = V[i, k] * scale[k]
+            rhs[i] = -F[i]
+        for j in range(3):
+            for k in range(3):
+                J[m + j, k] = dM[j, k] * scale[k] * rows[j]
+            for i in range(m):
+                J[m + j, 3 + i] = W[j, i] * rows[j]
+            rhs[m + j] = -eq[j]
+        dz, ok = dense.solve(J, rhs)
+        if not ok:
+            return q, False
+        du = dz[:3]
+        if np.abs(du).max() > size:
+            return q, False
+        q = q + du * scale
+        lam = lam + dz[3:]
+    return q, False
