@@ -22,6 +22,7 @@ import numpy as np
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env.scene import Scene
+from grasp_env.sim import clearance
 from grasp_env.sim.placement import world_points
 
 EDGE, TIP = 0, 1
@@ -89,8 +90,8 @@ class Placement:
     """
 
     __slots__ = (
-        "_pair_gaps", "com_W", "h", "hand_W", "hand_n_W", "local", "obj_W", "obj_n_W", "q",
-        "scene", "world",
+        "com_W", "h", "hand_W", "hand_n_W", "local", "obj_W", "obj_n_W", "q", "scene",
+        "world",
     )  # fmt: skip
 
     def __init__(self, scene: Scene, q: np.ndarray, h: np.ndarray) -> None:
@@ -98,23 +99,10 @@ class Placement:
         local = self.local = local_geometry(scene)
         m, n = local.n_vertices, local.n_object
         world = self.world = world_points(local.points, local.body, m, local.half, q, h)
-        self._pair_gaps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.com_W = q[:2]
         self.obj_W, self.obj_n_W = world[:n], world[m : m + n]
         self.hand_W = world[n:m].reshape(3, 4, 2)
         self.hand_n_W = world[m + n :].reshape(3, 4, 2)
-
-    def pair_gaps(self, body: int) -> tuple[np.ndarray, np.ndarray]:
-        """Signed gaps of every object vertex to every edge line of hand ``body`` (k, j) and
-        of every hand vertex to every object edge line (j, k); computed once per placement
-        for :func:`min_gap` and :func:`separations`."""
-        cache = self._pair_gaps.get(body)
-        if cache is None:
-            obj, poly = self.obj_W, self.hand_W[body - 1]
-            g = ((obj[:, None, :] - poly[None]) * self.hand_n_W[body - 1][None]).sum(-1)
-            g2 = ((poly[:, None, :] - obj[None]) * self.obj_n_W[None]).sum(-1)
-            cache = self._pair_gaps[body] = (g, g2)
-        return cache
 
     def evaluate(self, key: ContactKey) -> tuple[np.ndarray, np.ndarray, float, float, float]:
         """Point (2,), normal into the object (2,), gap, edge parameter t and edge length.
@@ -179,13 +167,7 @@ def local_geometry(scene: Scene) -> LocalGeometry:
 def broad_phase(pl: Placement, margin: float) -> list[int]:
     """Hand bodies (1..3) whose bounding box comes within ``margin`` of the object's, plus the
     support (0) when the object's lowest point is within ``margin`` of y = 0."""
-    lo, hi = pl.obj_W.min(axis=0) - margin, pl.obj_W.max(axis=0) + margin
-    near = [geo.SUPPORT] if lo[1] <= 0.0 else []
-    for b, poly in enumerate(pl.hand_W, start=1):
-        plo, phi = poly.min(axis=0), poly.max(axis=0)
-        if np.all(plo <= hi) and np.all(phi >= lo):
-            near.append(b)
-    return near
+    return [int(b) for b in clearance.near_bodies(pl.world, pl.local.n_object, margin)]
 
 
 def candidate_gaps(
@@ -292,48 +274,34 @@ def vertex_of(key: ContactKey) -> tuple[int, int, int]:
 def min_gap(
     pl: Placement, exclude: set[tuple[int, int, int]] = frozenset(), bodies: list[int] | None = None
 ) -> tuple[float, ContactKey | None]:
-    """Smallest vertex-in-body gap over every vertex not pinned by a contact in ``exclude``.
+    """Smallest vertex-in-body gap over every vertex not pinned by a contact in ``exclude``
+    (:func:`vertex_of` triples of the active contacts), over ``bodies`` (default all).
 
-    For a vertex and a convex body the gap is the largest of the vertex's edge gaps, which is
-    exact while the vertex is inside, so no penetration by a vertex goes unnoticed. ``exclude``
-    holds :func:`vertex_of` triples of the active contacts. Returns ``(gap, key)`` of the worst
-    pair (``key`` names the edge of largest gap, i.e. the edge the vertex entered through).
+    Returns ``(gap, key)`` of the worst pair (:func:`grasp_env.sim.clearance.min_gap`), or
+    ``(inf, None)`` when there is none.
     """
-    worst, worst_key = np.inf, None
-    obj = pl.obj_W
-    for body in bodies if bodies is not None else (0, 1, 2, 3):
-        if body == geo.SUPPORT:
-            for k in range(len(obj)):
-                if obj[k, 1] < worst and (0, EDGE, k) not in exclude:
-                    worst, worst_key = float(obj[k, 1]), (0, EDGE, k, 0)
-            continue
-        g, g2 = pl.pair_gaps(body)  # object vertex k vs hand edge j; hand vertex j vs edge k
-        inside = g.max(axis=1)
-        for k in np.argsort(inside):
-            if inside[k] >= worst:
-                break
-            if (body, EDGE, int(k)) not in exclude:
-                worst, worst_key = float(inside[k]), (body, EDGE, int(k), int(np.argmax(g[k])))
-        inside = g2.max(axis=1)
-        for j in np.argsort(inside):
-            if inside[j] >= worst:
-                break
-            if (body, TIP, int(j)) not in exclude:
-                worst, worst_key = float(inside[j]), (body, TIP, int(np.argmax(g2[j])), int(j))
-    return worst, worst_key
+    local = pl.local
+    gap, key = clearance.min_gap(
+        pl.world,
+        local.n_object,
+        local.n_vertices,
+        np.array((0, 1, 2, 3) if bodies is None else bodies, dtype=np.int64),
+        np.array(sorted(exclude), dtype=np.int64).reshape(-1, 3),
+    )
+    return float(gap), (
+        None if key[0] < 0 else (int(key[0]), int(key[1]), int(key[2]), int(key[3]))
+    )
 
 
 def separations(pl: Placement, bodies) -> dict[int, float]:
-    """Separating-axis distance of the object from each hand body in ``bodies``: the largest
-    gap between them along an edge normal of either polygon, a lower bound on their distance
-    (minus the overlap depth when they overlap)."""
-    out = {}
-    for body in bodies:
-        if body == geo.SUPPORT:
-            continue
-        g, g2 = pl.pair_gaps(body)
-        out[body] = float(max(g.min(axis=0).max(), g2.min(axis=0).max()))
-    return out
+    """Separating-axis distance of the object from each hand body in ``bodies``
+    (:func:`grasp_env.sim.clearance.separation`)."""
+    local = pl.local
+    return {
+        b: float(clearance.separation(pl.world, local.n_object, local.n_vertices, b))
+        for b in bodies
+        if b != geo.SUPPORT
+    }
 
 
 def max_overlap(pl: Placement, bodies: list[int]) -> tuple[float, int | None]:
@@ -344,8 +312,8 @@ def max_overlap(pl: Placement, bodies: list[int]) -> tuple[float, int | None]:
     ``(depth, body)``: the largest over the bodies of minus :func:`separations` (<= 0 when
     apart), or ``(-inf, None)`` for no hand body.
     """
-    seps = separations(pl, bodies)
-    if not seps:
-        return -np.inf, None
-    body = min(seps, key=seps.get)
-    return -seps[body], body
+    local = pl.local
+    depth, body = clearance.max_overlap(
+        pl.world, local.n_object, local.n_vertices, np.array(bodies, dtype=np.int64)
+    )
+    return float(depth), (None if body < 0 else int(body))

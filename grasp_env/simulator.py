@@ -79,7 +79,7 @@ class Simulator:
             size (default 0.02).
         max_iterations: safety cap on increments per move (default 10000).
         max_solves: cap on pose solves (Newton runs) per call of :meth:`move_hand` or
-            :meth:`settle`, the retry included (default 20000). A move that needs more
+            :meth:`settle`, the retry included (default 5000). A move that needs more
             raises :class:`WorkLimitError`; it bounds the time of any one call.
         lp_solver: ``"fast"`` (exact basis enumeration, :mod:`grasp_env.fastlp`) or ``"highs"``
             (the reference path through scipy's HiGHS) for the motion LP.
@@ -92,7 +92,7 @@ class Simulator:
         max_step: float = 0.25,
         fall_step: float = 0.02,
         max_iterations: int = 10000,
-        max_solves: int = 20000,
+        max_solves: int = 5000,
         lp_solver: str = "fast",
     ) -> None:
         self.scene = load_scene(scene)
