@@ -111,7 +111,7 @@ class Simulator:
         self.tol = float(contact_tol) * L
         self.max_step = float(max_step)
         self.max_iterations = int(max_iterations)
-        if not (isinstance(max_solves, int) and max_solves > 0):
+        if isinstance(max_solves, bool) or not (isinstance(max_solves, int) and max_solves > 0):
             raise ValueError(f"max_solves must be a positive int, got {max_solves!r}")
         self.max_solves = max_solves
         self._solves = [0]  # pose solves of the current call, shared with a retry's copy

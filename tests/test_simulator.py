@@ -1430,3 +1430,34 @@ def test_no_contacts_never_reach_scipy_nnls() -> None:
 
     lam, res = _nnls(np.zeros((3, 0)), np.array([0.0, 2.5, 0.0]))
     assert lam.shape == (0,) and res == pytest.approx(2.5)
+
+
+def test_work_limit_bounds_a_move_and_is_not_retried(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A move that needs more than ``max_solves`` pose solves raises WorkLimitError after
+    exactly that many, without the retry on the reference path (which would repeat the same
+    work); the same move with the default budget completes."""
+    from grasp_env.simulator import WorkLimitError
+
+    sim = Simulator(scene_of("fig13"), max_solves=5)
+    start = sim.reset()
+    q1, q2 = start.finger_angles
+    careful = 0
+    make_careful = Simulator._careful
+
+    def counting(self):
+        nonlocal careful
+        careful += 1
+        return make_careful(self)
+
+    monkeypatch.setattr(Simulator, "_careful", counting)
+    with pytest.raises(WorkLimitError, match="more than 5 pose solves"):
+        sim.move_hand(start, fingers=(q1 + 0.8, q2 - 0.8))
+    assert sim._solves[0] == 6 and careful == 0
+    state = Simulator(scene_of("fig13")).move_hand(start, fingers=(q1 + 0.8, q2 - 0.8))
+    assert state.form_closure
+
+
+def test_work_limit_is_validated() -> None:
+    for bad in (0, -1, 2.5, "10", None, True):
+        with pytest.raises(ValueError, match="max_solves"):
+            Simulator(scene_of("fig13"), max_solves=bad)
