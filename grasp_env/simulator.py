@@ -36,7 +36,7 @@ from grasp_env import mechanics as mech
 from grasp_env import qp
 from grasp_env.errors import SolverError
 from grasp_env.scene import Scene, load_scene
-from grasp_env.sim import dense, placement, pose
+from grasp_env.sim import consistency, dense, placement, pose
 from grasp_env.state import Event, State
 from grasp_env.width import object_width
 
@@ -618,36 +618,24 @@ class Simulator:
         active force, scaled by size / weight) and ``"equilibrium"`` (the residual of the
         object's equilibrium with ``E``'s forces, which only flags violations).
         """
-        pl = self._place(q, h)
-        exclude = {ct.vertex_of(k) for k in E}
-        near = ct.broad_phase(pl, 0.05 * self.size + self.tol)
-        gap, key = ct.min_gap(pl, exclude, near)
+        g = self._local
+        gap, gap_key, depth, body, ends, lost, force, residual = consistency.violations(
+            self._place(q, h).world, g.n_object, g.n_vertices, _key_array(E),
+            0.05 * self.size + self.tol, q[:2], self._gravity,
+        )  # fmt: skip
         out = {}
-        if key is not None:
-            out[("new_contact", key)] = -gap
-        depth, body = ct.max_overlap(pl, near)
-        if body is not None:
-            out[("overlap", body)] = depth
-        P = np.empty((len(E), 2))
-        N = np.empty((len(E), 2))
-        for i, k in enumerate(E):
-            P[i], N[i], _, t, L = pl.evaluate(k)
-            if np.isfinite(L):
-                kind = "edge_to_tip" if k[1] == ct.EDGE else "tip_to_edge"
-                out[(kind, k)] = max(-t, t - 1.0) * L
+        if gap_key[0] >= 0:
+            out[("new_contact", tuple(int(x) for x in gap_key))] = -gap
+        if body >= 0:
+            out[("overlap", int(body))] = depth
+        for k, end in zip(E, ends, strict=True):
+            if end > -np.inf:
+                out[("edge_to_tip" if k[1] == ct.EDGE else "tip_to_edge", k)] = end
         if E:
-            W = mech.V_ob(P, N, q[:2]).T
             scale = self.size / self.weight
-            g = self._gravity
-            lam = _independent_forces(W, g) if len(E) <= 3 else None
-            if lam is not None:
-                r = dense.matvec(W, lam) - g
-                res = math.sqrt(dense.dot(r, r))
-                i = int(np.argmin(lam))
-                out[("lost_contact", E[i])] = -lam[i] * scale
-            else:
-                lam, res = _nnls(W, g)
-            out[("equilibrium", None)] = res * scale - self.tol
+            if lost >= 0:
+                out[("lost_contact", E[lost])] = -force * scale
+            out[("equilibrium", None)] = residual * scale - self.tol
         return out
 
     def _worst(self, checks: dict) -> tuple[float, tuple]:
@@ -919,14 +907,13 @@ class Simulator:
         return q_lo, True
 
     def _geometry_violation(self, q, h, E) -> float:
-        pl = self._place(q, h)
-        gap, _ = ct.min_gap(pl, {ct.vertex_of(k) for k in E})
-        worst = max(-gap, ct.max_overlap(pl, (1, 2, 3))[0])
-        for k in E:
-            _, _, _, t, L = pl.evaluate(k)
-            if np.isfinite(L):
-                worst = max(worst, max(-t, t - 1.0) * L)
-        return worst
+        """Penetration, overlap or a contact past its edge's end, at worst, for ``E``."""
+        g = self._local
+        return float(
+            consistency.geometry_violation(
+                self._place(q, h).world, g.n_object, g.n_vertices, _key_array(E)
+            )
+        )
 
     # ------------------------------------------------------------------ output
     def _make_state(self, q, h, events, jammed=False, blocked=False) -> State:
