@@ -22,6 +22,7 @@ from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env.errors import SolverError
 from grasp_env.scene import Scene
+from grasp_env.sim import dense
 from grasp_env.state import State
 
 
@@ -68,6 +69,10 @@ def W_O(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.nd
     return V_ob(points_W, normals_W, com_W).T
 
 
+#: ``w / W``: the gravity wrench in units of the object's weight.
+_UNIT_GRAVITY = np.array([0.0, 1.0, 0.0])
+
+
 def gravity_wrench(scene: Scene) -> np.ndarray:
     """``w`` of eq. 15 about the centre of mass: the wrench the contacts must supply, (3,)."""
     return np.array([0.0, scene.object_weight, 0.0])
@@ -101,7 +106,7 @@ def finger_gravity_moments(scene: Scene, h: np.ndarray) -> np.ndarray:
     for k in range(2):
         f = scene.fingers[k]
         c_local = f.polygon_local(k + 1).mean(axis=0)
-        c_W = geo.rot(poses[k + 1, 2]) @ c_local
+        c_W = geo.rotate(c_local, poses[k + 1, 2])
         out[k] = f.mass * scene.gravity * c_W[0]  # -(r x (0, -m g)) = m g r_x
     return out
 
@@ -178,19 +183,20 @@ def escape_direction(state: State) -> np.ndarray | None:
     Solves ``max 1^T V u  s.t.  V u >= 0, -1 <= u <= 1`` in scaled twists ``u = (vx, vy,
     rho omega)`` (``rho`` the radius of gyration). If ``V`` has rank < 3 a null-space twist
     escapes; otherwise ``V u >= 0`` has a nonzero solution iff the optimum is positive (section
-    2.5: form closure iff ``V_ob dq >= 0`` admits only ``dq = 0``). Returned with unit norm in the
-    scaled metric, as ``(vx, vy, omega)``.
+    2.5: form closure iff ``V_ob dq >= 0`` admits only ``dq = 0``). The scaled rows
+    ``[n_i, r_i x n_i / rho]`` are dimensionless, so the tolerances do not depend on the
+    scene's units. Returned with unit norm in the scaled metric, as ``(vx, vy, omega)``.
     """
     _, _, _, V = _state_arrays(state)
     rho = gyration_radius(state.scene)
     Vs = V * np.array([1.0, 1.0, 1.0 / rho])
-    if len(Vs) == 0 or np.linalg.matrix_rank(Vs, tol=1e-10) < 3:
-        u = np.linalg.svd(np.vstack([Vs, np.zeros((1, 3))]))[2][-1]
+    if len(Vs) == 0 or dense.rank(Vs, 1e-10) < 3:
+        u = dense.svd(np.vstack([Vs, np.zeros((1, 3))]))[2][:, -1]  # least singular vector
         return u * np.array([1.0, 1.0, 1.0 / rho])
     res = lp.solve(-Vs.sum(axis=0), A_ub=-Vs, b_ub=np.zeros(len(Vs)), bounds=(-1, 1))
     if res.status != "optimal" or -res.value <= 1e-9 * len(Vs):
         return None
-    u = res.x / np.linalg.norm(res.x)
+    u = res.x / float(geo.norms(res.x))
     return u * np.array([1.0, 1.0, 1.0 / rho])
 
 
@@ -199,10 +205,26 @@ def is_form_closure(state: State) -> bool:
     return escape_direction(state) is None
 
 
+def _equilibrium_rows(V: np.ndarray, length: float) -> np.ndarray:
+    """``W_O = V^T`` (3, n) in dimensionless units: the moment row divided by ``length``.
+
+    With forces in units of the object's weight and moments in units of weight x ``length``
+    the analysis LPs have data of order one whatever the scene's units, so HiGHS's absolute
+    tolerances (1e-7) act as relative ones.
+    """
+    A = V.T.copy()
+    A[2] /= length
+    return A
+
+
 def is_force_closure(state: State) -> bool:
-    """Force closure (section 2.5): gravity is balanced by the contacts, ``W_O c = w, c >= 0``."""
+    """Force closure (section 2.5): gravity is balanced by the contacts, ``W_O c = w, c >= 0``.
+
+    Solved for ``c / weight`` with moments in units of weight x palm width (dimensionless).
+    """
     _, _, _, V = _state_arrays(state)
-    res = lp.solve(np.zeros(len(V)), A_eq=V.T, b_eq=gravity_wrench(state.scene), bounds=(0, None))
+    A = _equilibrium_rows(V, state.scene.palm.width)
+    res = lp.solve(np.zeros(len(V)), A_eq=A, b_eq=_UNIT_GRAVITY, bounds=(0, None))
     return res.status == "optimal"
 
 
@@ -217,16 +239,22 @@ def grip_objective(state: State) -> float:
                            tau_min <= tau <= tau_max (eqs. 35-36),  c >= 0 (eq. 34)
 
     as a direct LP in ``c`` with ``tau = s - W_F c`` substituted; the paper's null-space form
-    (eqs. 29-33) is the same problem (tests compare the two).
+    (eqs. 29-33) is the same problem (tests compare the two). The LP is solved in units of the
+    object's weight ``W`` (forces) and ``W`` x palm width (moments, torques), so its answer
+    does not depend on the scene's units.
+
+    Since the force rows of ``W_O c = w`` sum unit normals, ``y* >= |w| / max_i |n_i| = W``:
+    a positive grip never reads as free.
     """
     p, n, b, V = _state_arrays(state)
     scene = state.scene
     if len(n) == 0:
         return math.inf
-    WF = W_F(scene, state.hand, b, p, n)
-    s = finger_gravity_moments(scene, state.hand)
-    tmin = np.array([f.torque_limits[0] for f in scene.fingers])
-    tmax = np.array([f.torque_limits[1] for f in scene.fingers])
+    W, L = scene.object_weight, scene.palm.width
+    WF = W_F(scene, state.hand, b, p, n) / L
+    s = finger_gravity_moments(scene, state.hand) / (W * L)
+    tmin = np.array([f.torque_limits[0] for f in scene.fingers]) / (W * L)
+    tmax = np.array([f.torque_limits[1] for f in scene.fingers]) / (W * L)
     # tau_min <= s - W_F c <= tau_max  <=>  -W_F c <= tau_max - s  and  W_F c <= s - tau_min
     rows, rhs = [], []
     for k in range(2):
@@ -242,8 +270,19 @@ def grip_objective(state: State) -> float:
         np.ones(len(n)),
         A_ub=A_ub,
         b_ub=b_ub,
-        A_eq=V.T,
-        b_eq=gravity_wrench(scene),
+        A_eq=_equilibrium_rows(V, L),
+        b_eq=_UNIT_GRAVITY,
         bounds=(0, None),
     )
-    return res.value if res.status == "optimal" else math.inf
+    if res.status != "optimal":
+        return math.inf
+    # The triangle inequality on the force rows (|sum c_i n_i| = 1 in units of W) bounds the
+    # optimum below independently of the solver.
+    bound = 1.0 / float(geo.norms(n).max())
+    if res.value < bound * (1.0 - 1e-6):
+        raise SolverError(
+            f"grip LP optimum {res.value!r} W is below its lower bound {bound!r} W",
+            status="inconsistent",
+        )
+    # Within HiGHS's tolerance (1e-7 of the weight) of the bound: rounding, clamp to it.
+    return W * max(res.value, bound)

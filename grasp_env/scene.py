@@ -3,6 +3,23 @@
 The schema is DESIGN.md section 3. :func:`load_scene` accepts a bundled scene name (a file in
 ``configs/scenes/``), a path to a YAML file, or a dict in the same schema. Every bad input
 raises :class:`~grasp_env.errors.SceneError` naming the field and the value.
+
+Accepted ranges (docs/reliability.md, "Scene ranges"). The simulator and the analysis work in
+units of the palm width ``w`` (lengths, the contact tolerance) and the object's weight ``W``
+(forces), so only the palm width, gravity and the densities are bounded absolutely, each
+over many more decades than any real hand needs in any unit system; the rest is bounded
+relative to ``w`` and ``W`` by what double precision resolves against the contact tolerance
+(``1e-9 w``) and the LP tolerances (``1e-7`` relative):
+
+* ``palm.width``: ``PALM_WIDTH_RANGE`` = [1e-6, 1e6];
+* ``palm.thickness``, ``fingers[i].length`` and ``.thickness``, the object's size (largest
+  extent of its vertices): ``LENGTH_RANGE`` = [1e-3, 1e3] x ``w``;
+* ``palm.pose`` x and y, object vertex coordinates: at most ``MAX_COORDINATE`` = 1e4 x ``w``
+  in magnitude;
+* ``gravity``: ``GRAVITY_RANGE`` = [1e-9, 1e9];
+* densities, and mass / area for an object given by its mass: ``DENSITY_RANGE`` = [1e-9, 1e9];
+* finite torque limits: at most ``MAX_TORQUE`` = 1e9 x ``W w`` in magnitude;
+* angles (``palm.pose[2]``, joint angles and limits): at most ``MAX_ANGLE`` = 2 pi in magnitude.
 """
 
 from __future__ import annotations
@@ -28,11 +45,28 @@ SCENES_DIR = Path(
 #: palm width (the simulator's default ``contact_tol``).
 DEFAULT_CONTACT_TOL = 1e-9
 
-#: Largest magnitude of any number in a scene, and smallest of a positive one (lengths,
-#: densities, masses, gravity): products such as ``mass * length**2`` must stay finite and
-#: normal floats, so that forces, inertias and tolerances derived from them do too.
-MAX_MAGNITUDE = 1e100
-MIN_POSITIVE = 1e-100
+#: Palm width, the length unit of the contact tolerance and of every relative range below:
+#: a micrometre to 1000 km in metres; a 10 cm hand fits in any unit from micrometres to km.
+PALM_WIDTH_RANGE = (1e-6, 1e6)
+
+#: Palm thickness, finger lengths and thicknesses and the object's size, in palm widths: a
+#: body 1e-3 w thin is still 1e6 contact tolerances thick.
+LENGTH_RANGE = (1e-3, 1e3)
+
+#: Largest coordinate (palm position, object vertices), in palm widths: rounding of a
+#: position (``1e4 w x 2.2e-16``) stays 450 times below the contact tolerance (``1e-9 w``).
+MAX_COORDINATE = 1e4
+
+#: Gravity and the bodies' densities (mass per unit area; for an object given by its mass,
+#: mass / area). The analysis works in units of the object's weight, so these only need
+#: finite products; the bounds leave room for any unit system.
+GRAVITY_RANGE = (1e-9, 1e9)
+DENSITY_RANGE = (1e-9, 1e9)
+
+#: Largest finite joint torque limit, in object weights x palm widths (the grip LP's torque
+#: unit). A larger one could bind only at contact forces above 1e9 weights, far beyond the
+#: simulator's holding cap (``MAX_FORCE``, 1e6 weights): give ``.inf`` instead.
+MAX_TORQUE = 1e9
 
 #: Largest magnitude of an angle (rad). Beyond one turn an angle is almost surely given in
 #: degrees (e.g. limits ``[-180, 0]``).
@@ -137,16 +171,35 @@ def _number(
         raise SceneError(f"{name} must be finite, got {value!r}")
     if positive and not x > 0:
         raise SceneError(f"{name} must be positive, got {value!r}")
-    if math.isfinite(x) and abs(x) > MAX_MAGNITUDE:
-        raise SceneError(f"{name} must be at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}")
-    if positive and x < MIN_POSITIVE:
-        raise SceneError(f"{name} must be at least {MIN_POSITIVE:g}, got {value!r}")
     if angle and abs(x) > MAX_ANGLE:
         raise SceneError(
             f"{name} must be an angle in radians within [-2 pi, 2 pi], got {value!r} "
             "(degrees given?)"
         )
     return x
+
+
+def _within(
+    x: float, name: str, bounds: tuple[float, float], unit: str = "", per: float = 1.0
+) -> float:
+    """``x`` if it lies in ``bounds`` times ``per`` (``unit`` names ``per``), else SceneError."""
+    lo, hi = bounds
+    if lo * per <= x <= hi * per:
+        return x
+    rel = f" x {unit} = [{lo * per:g}, {hi * per:g}]" if unit else ""
+    raise SceneError(f"{name} must be within [{lo:g}, {hi:g}]{rel}, got {x!r}")
+
+
+def _coordinates(v: np.ndarray, name: str, width: float) -> None:
+    """Refuse a coordinate beyond ``MAX_COORDINATE`` palm widths; ``v`` is (n, 2) or (2,)."""
+    bad = np.argwhere(np.abs(np.atleast_2d(v)) > MAX_COORDINATE * width)
+    if len(bad):
+        i, j = (int(x) for x in bad[0])
+        where = f"{name}[{i}][{j}]" if np.ndim(v) == 2 else f"{name}[{j}]"
+        raise SceneError(
+            f"{where} must be within {MAX_COORDINATE:g} x palm.width = "
+            f"{MAX_COORDINATE * width:g} in magnitude, got {float(np.atleast_2d(v)[i, j])!r}"
+        )
 
 
 def _vector(
@@ -174,17 +227,33 @@ def _check_keys(d: Any, allowed: set[str], required: set[str], name: str) -> Non
         raise SceneError(f"{name}: missing key(s) {missing}")
 
 
+def _length(d: dict, key: str, name: str, width: float, default: float | None = None) -> float:
+    """``d[key]`` (or ``default``), positive and within ``LENGTH_RANGE`` palm widths."""
+    x = _number(d.get(key, default), name, positive=True)
+    unit = "palm.width" if key in d else "palm.width (default)"
+    return _within(x, name, LENGTH_RANGE, unit, width)
+
+
+def _density(d: dict, name: str) -> float:
+    return _within(_number(d.get("density", 1.0), name, positive=True), name, DENSITY_RANGE)
+
+
 def _palm(d: Any) -> PalmSpec:
     _check_keys(d, _PALM_KEYS, {"width", "pose"}, "palm")
+    width = _within(
+        _number(d["width"], "palm.width", positive=True), "palm.width", PALM_WIDTH_RANGE
+    )
+    pose = _vector(d["pose"], "palm.pose", 3, angles=(2,))
+    _coordinates(pose[:2], "palm.pose", width)
     return PalmSpec(
-        width=_number(d["width"], "palm.width", positive=True),
-        thickness=_number(d.get("thickness", 0.15), "palm.thickness", positive=True),
-        pose=_vector(d["pose"], "palm.pose", 3, angles=(2,)),
-        density=_number(d.get("density", 1.0), "palm.density", positive=True),
+        width=width,
+        thickness=_length(d, "thickness", "palm.thickness", width, default=0.15),
+        pose=pose,
+        density=_density(d, "palm.density"),
     )
 
 
-def _finger(d: Any, i: int) -> FingerSpec:
+def _finger(d: Any, i: int, width: float) -> FingerSpec:
     name = f"fingers[{i}]"
     _check_keys(d, _FINGER_KEYS, {"length", "angle"}, name)
     limits = tuple(_vector(d.get("limits", [-math.pi, 0.0]), f"{name}.limits", 2, angles=(0, 1)))
@@ -195,7 +264,7 @@ def _finger(d: Any, i: int) -> FingerSpec:
         raise SceneError(
             f"{name}.angle {angle!r} is outside {name}.limits {[float(x) for x in limits]!r}"
         )
-    torque = d.get("torque_limits")
+    torque = d.get("torque_limits")  # bounded relative to the weight in _check_torques
     if torque is None:
         torque_limits = (-math.inf, math.inf)
     else:
@@ -203,22 +272,23 @@ def _finger(d: Any, i: int) -> FingerSpec:
         if not torque_limits[0] < torque_limits[1]:
             raise SceneError(f"{name}.torque_limits must be increasing, got {torque!r}")
     return FingerSpec(
-        length=_number(d["length"], f"{name}.length", positive=True),
-        thickness=_number(d.get("thickness", 0.05), f"{name}.thickness", positive=True),
+        length=_length(d, "length", f"{name}.length", width),
+        thickness=_length(d, "thickness", f"{name}.thickness", width, default=0.05),
         angle=angle,
         limits=limits,  # type: ignore[arg-type]
         torque_limits=torque_limits,  # type: ignore[arg-type]
-        density=_number(d.get("density", 1.0), f"{name}.density", positive=True),
+        density=_density(d, f"{name}.density"),
     )
 
 
-def _object(d: Any) -> ObjectSpec:
+def _object(d: Any, width: float) -> ObjectSpec:
     _check_keys(d, _OBJECT_KEYS, {"vertices"}, "object")
     raw = d["vertices"]
     if not isinstance(raw, list | tuple | np.ndarray) or len(raw) < 3:
         raise SceneError(f"object.vertices must be a list of at least 3 [x, y] points, got {raw!r}")
     v = np.array([_vector(p, f"object.vertices[{i}]", 2) for i, p in enumerate(raw)])
-    edge = np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1)
+    _coordinates(v, "object.vertices", width)
+    edge = geo.norms(np.roll(v, -1, axis=0) - v)
     scale = float(np.ptp(v, axis=0).max())
     for i in np.flatnonzero(edge <= 1e-9 * max(scale, 1e-300)):
         j = (i + 1) % len(v)
@@ -234,10 +304,17 @@ def _object(d: Any) -> ObjectSpec:
         raise SceneError(
             f"object: give either density ({d['density']!r}) or mass ({d['mass']!r}), not both"
         )
+    size = "object.vertices: the object's size (largest extent)"
+    _within(scale, size, LENGTH_RANGE, "palm.width", width)
     if "mass" in d:
         mass = _number(d["mass"], "object.mass", positive=True)
+        if not DENSITY_RANGE[0] <= mass / area <= DENSITY_RANGE[1]:
+            raise SceneError(
+                f"object.mass {mass!r} gives a mean density (mass / area) of {mass / area:g}, "
+                f"outside [{DENSITY_RANGE[0]:g}, {DENSITY_RANGE[1]:g}]"
+            )
     else:
-        mass = _number(d.get("density", 1.0), "object.density", positive=True) * area
+        mass = _density(d, "object.density") * area
     c = geo.polygon_centroid(v)
     v_B = v - c
     return ObjectSpec(
@@ -248,12 +325,24 @@ def _object(d: Any) -> ObjectSpec:
     )
 
 
-def _check_sizes(scene: Scene) -> None:
-    """Refuse object edges shorter than ``MIN_EDGE_TOLS`` contact tolerances, and derived
-    masses, weights or inertias that are not finite positive normal floats."""
+def _check_torques(scene: Scene) -> None:
+    """Refuse finite torque limits beyond ``MAX_TORQUE`` object weights x palm widths."""
+    bound = MAX_TORQUE * scene.object_weight * scene.palm.width
+    for i, f in enumerate(scene.fingers):
+        for j, tau in enumerate(f.torque_limits):
+            if math.isfinite(tau) and abs(tau) > bound:
+                raise SceneError(
+                    f"fingers[{i}].torque_limits[{j}] must be within {MAX_TORQUE:g} x object "
+                    f"weight x palm.width = {bound:g} in magnitude (.inf for no limit), "
+                    f"got {float(tau)!r}"
+                )
+
+
+def _check_edges(scene: Scene) -> None:
+    """Refuse object edges shorter than ``MIN_EDGE_TOLS`` contact tolerances."""
     tol = DEFAULT_CONTACT_TOL * scene.palm.width
     v = scene.object.vertices_W0
-    edge = np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1)
+    edge = geo.norms(np.roll(v, -1, axis=0) - v)
     i = int(np.argmin(edge))
     if edge[i] < MIN_EDGE_TOLS * tol:
         j = (i + 1) % len(v)
@@ -262,17 +351,6 @@ def _check_sizes(scene: Scene) -> None:
             f"{float(edge[i])!r} apart, less than {MIN_EDGE_TOLS:g} contact tolerances "
             f"({MIN_EDGE_TOLS * tol:g} = {MIN_EDGE_TOLS:g} x {DEFAULT_CONTACT_TOL:g} x palm.width)"
         )
-    derived = {
-        "palm mass (palm.density x width x thickness)": scene.palm.mass,
-        "fingers[0] mass": scene.fingers[0].mass,
-        "fingers[1] mass": scene.fingers[1].mass,
-        "object mass": scene.object.mass,
-        "object weight (mass x gravity)": scene.object_weight,
-        "object inertia": scene.object.inertia,
-    }
-    for what, x in derived.items():
-        if not (math.isfinite(x) and MIN_POSITIVE**2 <= x <= MAX_MAGNITUDE**2):
-            raise SceneError(f"{what} is {x!r}: out of the range of representable quantities")
 
 
 def _check_placement(scene: Scene) -> None:
@@ -299,7 +377,11 @@ def _check_placement(scene: Scene) -> None:
 
 
 def scene_from_dict(d: Any, source: str | None = None) -> Scene:
-    """Build and validate a :class:`Scene` from a dict in the schema of DESIGN.md section 3."""
+    """Build and validate a :class:`Scene` from a dict in the schema of DESIGN.md section 3.
+
+    Besides the schema, every quantity must lie in the ranges of the module docstring; a
+    value outside raises :class:`SceneError` naming the field, the value and the range.
+    """
     _check_keys(d, _TOP_KEYS, {"palm", "fingers", "object"}, "scene")
     fingers = d["fingers"]
     if not isinstance(fingers, list | tuple) or len(fingers) != 2:
@@ -307,16 +389,22 @@ def scene_from_dict(d: Any, source: str | None = None) -> Scene:
     name = d.get("name", "unnamed")
     if not isinstance(name, str):
         raise SceneError(f"name must be a string, got {name!r}")
+    gravity = _within(
+        _number(d.get("gravity", 9.81), "gravity", positive=True), "gravity", GRAVITY_RANGE
+    )
+    palm = _palm(d["palm"])
+    w = palm.width
     scene = Scene(
         name=name,
-        gravity=_number(d.get("gravity", 9.81), "gravity", positive=True),
-        palm=_palm(d["palm"]),
-        fingers=(_finger(fingers[0], 0), _finger(fingers[1], 1)),
-        object=_object(d["object"]),
+        gravity=gravity,
+        palm=palm,
+        fingers=(_finger(fingers[0], 0, w), _finger(fingers[1], 1, w)),
+        object=_object(d["object"], w),
         description=str(d.get("description", "")),
         source=source,
     )
-    _check_sizes(scene)
+    _check_torques(scene)
+    _check_edges(scene)
     _check_placement(scene)
     return scene
 

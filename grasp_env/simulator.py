@@ -125,6 +125,10 @@ class Simulator:
         # Newton stops well inside the tolerance, but not below what doubles can resolve
         self.newton_tol = max(1e-3 * self.tol, 64 * np.finfo(float).eps * L)
         self._scale = np.array([1.0, 1.0, 1.0 / self.rho])  # twist -> scaled twist rows
+        # Moments in units of the palm width, so that the equilibrium rows (forces in weights,
+        # moments in weight x palm width) and the motion LP's tolerances are unit-free.
+        self._length = L
+        self._per_length = np.array([1.0, 1.0, 1.0 / L])
         self._placements: dict[tuple[bytes, bytes], ct.Placement] = {}
         self._local = ct.local_geometry(self.scene)
         # Sweep bounds: how far any hand vertex lies from its body's frame origin (palm,
@@ -455,7 +459,7 @@ class Simulator:
                 continue
             if res == "jam":
                 continue
-            if best is None or res[0] < best[0] - 1e-12 * self.weight:
+            if best is None or res[0] < best[0] - 1e-12 * self.weight * self._length:
                 best = res
         if best is None:
             return "jam"
@@ -469,9 +473,10 @@ class Simulator:
             # The hand moves no contact (the object on the support, the fingers in free
             # space): v = 0 is optimal, with every contact tight, whenever the contacts hold
             # the object exactly; only the borderline cases need the LP.
-            if _nnls(V.T, self._gravity)[1] <= 1e-12 * self.weight:
+            if _nnls((V * self._per_length).T, self._gravity)[1] <= 1e-12 * self.weight:
                 return 0.0, list(keys), np.zeros(3)
-        res = mech.motion_lp(V, xi, self.weight, self.lp_solver)
+        L = self._length
+        res = mech.motion_lp(V * self._per_length, xi / L, self.weight, self.lp_solver)
         if res.status == "infeasible":
             return "jam"
         if res.status == "unbounded":
@@ -480,14 +485,14 @@ class Simulator:
         pos = lam > self.ftol
         Vs = V * self._scale
         try:
-            w = qp.least_norm(Vs[pos], xi[pos], Vs[~pos], xi[~pos], tol=1e-9)
+            w = qp.least_norm(Vs[pos], xi[pos] / L, Vs[~pos], xi[~pos] / L, tol=1e-9) * L
         except SolverError:
-            w = res.velocity / self._scale
+            w = res.velocity * L * self._per_length / self._scale
         v = w * self._scale
         slack = dense.matvec(V, v) - xi
-        tight = pos | (slack <= 1e-9 * max(1.0, float(np.abs(xi).max(initial=0.0))))
+        tight = pos | (slack <= 1e-9 * max(L, float(np.abs(xi).max(initial=0.0))))
         E = [k for k, t in zip(keys, tight, strict=True) if t]
-        return res.value, E, v
+        return res.value * L, E, v
 
     def _sweep_limit(self, q, h, dh, v, E, rest: float) -> float:
         """Largest ``ds`` (up to ``rest``) after which no hand body out of contact can have
@@ -621,7 +626,7 @@ class Simulator:
         g = self._local
         gap, gap_key, depth, body, ends, lost, force, residual = consistency.violations(
             self._place(q, h).world, g.n_object, g.n_vertices, _key_array(E),
-            0.05 * self.size + self.tol, q[:2], self._gravity,
+            0.05 * self.size + self.tol, q[:2], self._gravity, self._length,
         )  # fmt: skip
         out = {}
         if gap_key[0] >= 0:
@@ -770,7 +775,7 @@ class Simulator:
         g = self._gravity
         for choice in _choices(pl, keys, self.tol):
             p, n, _ = _arrays(pl, choice)
-            lam, res = _nnls(mech.V_ob(p, n, pl.com_W).T, g)
+            lam, res = _nnls((mech.V_ob(p, n, pl.com_W) * self._per_length).T, g)
             if res > ftol or lam.max() > max_force * self.weight:
                 return False
         return True
@@ -945,7 +950,7 @@ class Simulator:
         if not keys:
             return np.zeros(0)
         p, n, _ = _arrays(pl, keys)
-        V = mech.V_ob(p, n, pl.com_W)
+        V = mech.V_ob(p, n, pl.com_W) * self._per_length
         g = self._gravity
         if len(keys) <= 3:
             # independent wrenches: the only forces in equilibrium, if non-negative

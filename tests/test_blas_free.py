@@ -12,10 +12,11 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "grasp_env"
-#: Modules on the path of an env step's simulation (the analysis LPs use scipy's HiGHS,
-#: which needs no BLAS, and are checked in test_mechanics).
+#: Modules on the path of an env step (the analysis LPs go through scipy's HiGHS, in lp.py,
+#: which needs no BLAS).
 SIMULATION = [
     "simulator.py",
+    "mechanics.py",
     "contacts.py",
     "fastlp.py",
     "qp.py",

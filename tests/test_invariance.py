@@ -5,8 +5,11 @@ path transformed the same way is run on both, and the two results must be relate
 transformation, to within the contact tolerance:
 
 * **scale by k** (every length, the palm pose's x and y; densities kept, so masses scale by
-  k^2; or masses given and multiplied by m): object poses ``(k x, k y, theta)``, finger angles
-  unchanged, contact points scaled by k, forces scaled by the mass factor (k^2 or m);
+  k^2; or masses given and multiplied by m; torque limits by the force factor times k):
+  object poses ``(k x, k y, theta)``, finger angles unchanged, contact points scaled by k,
+  forces and the grip objective y* scaled by the mass factor (k^2 or m), the same events. k
+  runs over the whole accepted range of palm widths (``scene.PALM_WIDTH_RANGE``), and the
+  weight over the ends of the gravity and density ranges; scenes beyond are refused;
 * **mirror** ``x -> -x``: finger 1 and finger 2 swap (lengths, thicknesses, limits), a finger
   angle ``q`` becomes ``-pi - q`` on the other side (axis ``(cos q, sin q)`` mirrored is
   ``(cos(-pi - q), sin(-pi - q))``), palm and object angles are negated, object vertices are
@@ -19,6 +22,7 @@ Each run's states are also checked by :func:`soak.check_state`.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -29,6 +33,9 @@ import yaml
 
 import grasp_env
 from grasp_env import Simulator
+from grasp_env import mechanics as mech
+from grasp_env import scene as scene_mod
+from grasp_env.errors import SceneError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import soak
@@ -37,6 +44,12 @@ SCENES_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenes"
 #: Pose agreement, as a fraction of the palm width (events are located to 1e-9 of it).
 POSE_RTOL = 1e-7
 FORCE_RTOL = 1e-6
+#: Event locations (path parameter s): events are located to the contact tolerance (1e-9 palm
+#: widths) along moves that sweep about 0.1 palm widths, i.e. s to about 1e-8.
+EVENT_STOL = 1e-6
+#: y* / W: the grip LP is solved on data of order one to HiGHS's 1e-7, on states that agree
+#: to POSE_RTOL, which moves y* / W by about as much as it moves forces / W (FORCE_RTOL).
+GRIP_RTOL = 1e-6
 
 
 def raw(name: str) -> dict:
@@ -51,6 +64,9 @@ def raw(name: str) -> dict:
 
 
 def scale_scene(d: dict, k: float, mass: float | None = None) -> dict:
+    """Every length times k; the object's mass given as ``mass`` (else densities kept); torque
+    limits times the force factor times k (they are bounded relative to weight x palm width)."""
+    force = k**2 if mass is None else mass / grasp_env.load_scene(d).object.mass
     d = copy.deepcopy(d)
     p = d["palm"]
     p["width"] *= k
@@ -59,7 +75,8 @@ def scale_scene(d: dict, k: float, mass: float | None = None) -> dict:
     for f in d["fingers"]:
         f["length"] *= k
         f["thickness"] = f.get("thickness", 0.05) * k
-        f.pop("torque_limits", None)  # torques scale by k^3: drop the (inactive) limits
+        if "torque_limits" in f:
+            f["torque_limits"] = [t * force * k for t in f["torque_limits"]]
     o = d["object"]
     o["vertices"] = [[x * k, y * k] for x, y in o["vertices"]]
     if mass is not None:
@@ -112,15 +129,14 @@ def shift_hand(h: np.ndarray, dx: float) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 
 
-def hand_path(d: dict, kind: str) -> list[np.ndarray]:
+def hand_path(d: dict, kind: str, moves: int = 8) -> list[np.ndarray]:
     """Hand targets in the original scene: ``"close"`` closes both fingers at equal rates
-    (0.06 rad per move, 8 moves: the paper's section 4); ``"palm"`` also moves and tilts
-    the palm."""
+    (0.06 rad per move: the paper's section 4); ``"palm"`` also moves and tilts the palm."""
     sc = grasp_env.load_scene(d)
     h = sc.initial_hand.copy()
     out = []
     rng = np.random.default_rng(7)
-    for m in range(8):
+    for m in range(moves):
         h = h.copy()
         h[3] += 0.06
         h[4] -= 0.05 if kind == "palm" else 0.06
@@ -160,9 +176,14 @@ def compare(
     force_factor: float,
     length: float,
 ) -> None:
-    """``b`` must be ``a`` transformed: poses, hands, contacts (point, body, kind), forces."""
+    """``b`` must be ``a`` transformed: poses, hands, contacts (point, body, kind), forces and
+    the events (kind and place along the move)."""
     for i, (sa, sb) in enumerate(zip(a, b, strict=True)):
         where = f"state {i}"
+        assert [e.kind for e in sb.events] == [e.kind for e in sa.events], where
+        np.testing.assert_allclose(
+            [e.s for e in sb.events], [e.s for e in sa.events], atol=EVENT_STOL, err_msg=where
+        )
         np.testing.assert_allclose(
             sb.object_pose, pose_map(sa.object_pose), atol=POSE_RTOL * length, err_msg=where
         )
@@ -230,6 +251,155 @@ def test_mass_scaling_scales_forces_only(mass: float) -> None:
         a, b, pose_map=lambda q: q, hand_map=lambda h: h, point_map=lambda p: p,
         body_map=lambda s: s, force_factor=mass / a[0].scene.object.mass, length=1.0,
     )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------
+# The whole accepted range: fig13 closed to form closure at every scale
+# ---------------------------------------------------------------------------------------
+
+#: fig13 closing at 0.06 rad per move jams in form closure on the 13th move (the palm, two
+#: object vertices on finger 1, one on finger 2): the kind of grasp whose y* the env rewards.
+CLOSING_MOVES = 13
+#: Finger 1's torque window (in object weights x palm widths) that binds in that grasp: it
+#: must press harder than the least forces need, raising y* / W from 1.49 to 2.13.
+BINDING = (0.5, 30.0)
+#: Palm widths over scene.PALM_WIDTH_RANGE (fig13's palm width is 1), ends included.
+SCALES = [1e-6, 1e-4, 1e-2, 1.0, 1e2, 1e4, 1e6]
+
+
+def with_finger1_torques(scene: grasp_env.Scene, limits: tuple[float, float]) -> grasp_env.Scene:
+    f1 = dataclasses.replace(scene.fingers[0], torque_limits=limits)
+    return dataclasses.replace(scene, fingers=(f1, scene.fingers[1]))
+
+
+def grips(states: list[grasp_env.State]) -> tuple[list[float], list[float]]:
+    """y* / W of every state with the scene's torque limits and with :data:`BINDING`."""
+    sc = states[0].scene
+    W, w = sc.object_weight, sc.palm.width
+    binding = with_finger1_torques(sc, (BINDING[0] * W * w, BINDING[1] * W * w))
+    own = [grasp_env.grip_objective(st) / W for st in states]
+    bound = [grasp_env.grip_objective(dataclasses.replace(st, scene=binding)) / W for st in states]
+    return own, bound
+
+
+@pytest.fixture(scope="module")
+def fig13_closing() -> tuple[dict, list[np.ndarray], list[grasp_env.State]]:
+    d = raw("fig13")
+    path = hand_path(d, "close", moves=CLOSING_MOVES)
+    return d, path, run(d, path)
+
+
+def test_fig13_closing_ends_in_form_closure(fig13_closing) -> None:
+    """The reference run (k = 1): form closure at the end, y* / W as the paper's grasp needs
+    (above 1: the fingers squeeze), raised by the binding torque window."""
+    _, _, a = fig13_closing
+    assert a[-1].jammed and a[-1].form_closure and not a[-1].on_support
+    own, bound = grips(a)
+    assert own[0] == pytest.approx(1.0, rel=1e-9)  # on the support: y* = W
+    assert own[-1] == pytest.approx(1.4939714507, rel=GRIP_RTOL)
+    assert bound[-1] == pytest.approx(2.1271411980, rel=GRIP_RTOL)
+
+
+@pytest.mark.parametrize("k", SCALES, ids=[f"k{k:g}" for k in SCALES])
+def test_scale_invariance_over_accepted_range(fig13_closing, k: float) -> None:
+    """Lengths times k, densities kept: poses / k, forces / W, contacts, events and y* / W (with
+    the scene's torque limits and with binding ones) as at k = 1; y* >= W > 0 in form
+    closure."""
+    d, path, a = fig13_closing
+    b = run(scale_scene(d, k), [scale_hand(h, k) for h in path])
+    compare(
+        a, b,
+        pose_map=lambda q: np.array([q[0] * k, q[1] * k, q[2]]),
+        hand_map=lambda h: scale_hand(h, k),
+        point_map=lambda p: p * k,
+        body_map=lambda s: s,
+        force_factor=k**2,
+        length=k,
+    )  # fmt: skip
+    assert [st.form_closure for st in b] == [st.form_closure for st in a]
+    for ya, yb in zip(grips(a), grips(b), strict=True):
+        np.testing.assert_allclose(yb, ya, rtol=GRIP_RTOL)
+    for st, y in zip(b, grips(b)[0], strict=True):
+        if st.form_closure:
+            assert y >= 1.0  # y* >= W: the force rows sum unit normals
+
+
+def scaled_state(st: grasp_env.State, scene: grasp_env.Scene, k: float) -> grasp_env.State:
+    """``st`` with every length times k and forces times k^2, in ``scene`` (scaled alike)."""
+    contacts = tuple(
+        dataclasses.replace(c, point=c.point * k, force=c.force * k**2, gap=c.gap * k)
+        for c in st.contacts
+    )
+    pose, hand = st.object_pose * [k, k, 1.0], scale_hand(st.hand, k)
+    return dataclasses.replace(st, scene=scene, object_pose=pose, hand=hand, contacts=contacts)
+
+
+@pytest.mark.parametrize("k", SCALES, ids=[f"k{k:g}" for k in SCALES])
+def test_analysis_invariance_over_accepted_range(fig13_closing, k: float) -> None:
+    """The analysis alone, on the k = 1 run's states scaled by k (no simulation): form and
+    force closure, escape directions and y* / W as at k = 1, y* >= W > 0 wherever it is finite."""
+    d, _, a = fig13_closing
+    scene = grasp_env.load_scene(scale_scene(d, k))
+    b = [scaled_state(st, scene, k) for st in a]
+    for i, (sa, sb) in enumerate(zip(a, b, strict=True)):
+        assert grasp_env.is_form_closure(sb) == grasp_env.is_form_closure(sa), f"state {i}"
+        assert grasp_env.is_force_closure(sb) == grasp_env.is_force_closure(sa), f"state {i}"
+        ub = grasp_env.escape_direction(sb)
+        assert (ub is None) == (grasp_env.escape_direction(sa) is None), f"state {i}"
+        if ub is not None:  # an escape twist (vx, vy, omega) at k is (k vx, k vy, omega) at 1
+            p, n, _ = sa.contact_arrays()
+            u = ub * [1.0 / k, 1.0 / k, 1.0]
+            assert np.all(mech.V_ob(p, n, sa.object_pose[:2]) @ u >= -1e-9 * np.linalg.norm(u))
+    for ya, yb in zip(grips(a), grips(b), strict=True):
+        np.testing.assert_allclose(yb, ya, rtol=GRIP_RTOL)
+        assert all(y >= 1.0 for y in yb)  # y* >= W, the triangle inequality on the force rows
+
+
+@pytest.mark.parametrize(
+    ("density", "gravity"),
+    [(scene_mod.DENSITY_RANGE[0], scene_mod.GRAVITY_RANGE[0]),
+     (scene_mod.DENSITY_RANGE[1], scene_mod.GRAVITY_RANGE[1])],
+    ids=["lightest", "heaviest"],
+)  # fmt: skip
+def test_weight_invariance_at_range_ends(fig13_closing, density: float, gravity: float) -> None:
+    """Every density and gravity at an end of their ranges (weights 1e-18 / 9.81 and 1e18 / 9.81
+    times fig13's): the same motion, forces and y* scaled by the weight."""
+    d, path, a = fig13_closing
+    e = copy.deepcopy(d)
+    for body in (e["palm"], *e["fingers"], e["object"]):
+        body["density"] = density
+    e["gravity"] = gravity
+    factor = density * gravity / (d["object"]["density"] * d["gravity"])
+    for f in e["fingers"]:
+        f["torque_limits"] = [t * factor for t in f["torque_limits"]]
+    b = run(e, path)
+    compare(
+        a, b, pose_map=lambda q: q, hand_map=lambda h: h, point_map=lambda p: p,
+        body_map=lambda s: s, force_factor=factor, length=1.0,
+    )  # fmt: skip
+    for ya, yb in zip(grips(a), grips(b), strict=True):
+        np.testing.assert_allclose(yb, ya, rtol=GRIP_RTOL)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda d: scale_scene(d, scene_mod.PALM_WIDTH_RANGE[0] / 10), r"palm\.width"),
+        (lambda d: scale_scene(d, scene_mod.PALM_WIDTH_RANGE[1] * 10), r"palm\.width"),
+        (lambda d: {**d, "gravity": scene_mod.GRAVITY_RANGE[0] / 10}, r"gravity"),
+        (lambda d: {**d, "gravity": scene_mod.GRAVITY_RANGE[1] * 10}, r"gravity"),
+        (
+            lambda d: {**d, "object": {**d["object"], "density": scene_mod.DENSITY_RANGE[1] * 10}},
+            r"object\.density",
+        ),
+        (lambda d: scale_scene(d, 1.0, mass=1e-12), r"object\.mass"),
+    ],
+    ids=["k-too-small", "k-too-large", "gravity-too-small", "gravity-too-large",
+         "density-too-large", "mass-too-small"],
+)  # fmt: skip
+def test_scales_beyond_the_range_are_refused(change, field: str) -> None:
+    with pytest.raises(SceneError, match=field):
+        grasp_env.load_scene(change(raw("fig13")))
 
 
 SWAP = {"finger1": "finger2", "finger2": "finger1"}

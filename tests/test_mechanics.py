@@ -642,6 +642,82 @@ def test_grip_objective_infeasible_torque_limit_analytic():
     assert grasp_env.grip_objective(state) == math.inf
 
 
+def in_units(scene, k: float, m: float):
+    """``scene`` in other units: lengths times k, masses times m (gravity kept, so weights and
+    forces times m, torque limits times m k)."""
+    p, o = scene.palm, scene.object
+    palm = replace(
+        p,
+        width=p.width * k,
+        thickness=p.thickness * k,
+        pose=p.pose * [k, k, 1.0],
+        density=p.density * m / k**2,
+    )
+    fingers = tuple(
+        replace(
+            f,
+            length=f.length * k,
+            thickness=f.thickness * k,
+            density=f.density * m / k**2,
+            torque_limits=tuple(t * m * k for t in f.torque_limits),
+        )
+        for f in scene.fingers
+    )
+    obj = replace(
+        o,
+        vertices_B=o.vertices_B * k,
+        start_pose=o.start_pose * [k, k, 1.0],
+        mass=o.mass * m,
+        inertia=o.inertia * m * k**2,
+    )
+    return replace(scene, palm=palm, fingers=fingers, object=obj)
+
+
+#: (length factor, mass factor): the accepted scene ranges and far beyond them.
+UNITS = [
+    (1e-12, 1.0),
+    (1e-6, 1e-12),
+    (1e-3, 1.0),
+    (1.0, 1e-15),
+    (1.0, 1e15),
+    (1e3, 1e9),
+    (1e6, 1e18),
+    (1e12, 1.0),
+]
+
+
+@pytest.mark.parametrize(("k", "m"), UNITS, ids=[f"k{k:g}-m{m:g}" for k, m in UNITS])
+def test_analysis_is_unit_free(k, m):
+    """60 seeded random grip states (binding and infeasible torque windows among them) in other
+    units: y* / W, force closure and form closure unchanged, and y* >= W (the force rows of
+    ``W_O c = w`` sum unit normals, so ``1^T c >= |w|``)."""
+    rng = np.random.default_rng(77)
+    for i in range(60):
+        scene, pose, h, p, n, bodies = _random_grip_case(rng)
+        state = make_state(pose, h, p, n, bodies, scene=scene)
+        other = make_state(
+            pose * [k, k, 1.0], h * [k, k, 1, 1, 1], p * k, n, bodies, scene=in_units(scene, k, m)
+        )
+        W, Wk = scene.object_weight, other.scene.object_weight
+        y, yk = grasp_env.grip_objective(state), grasp_env.grip_objective(other)
+        assert math.isinf(yk) == math.isinf(y), f"case {i}: {y / W} W, in other units {yk / Wk} W"
+        if math.isfinite(y):
+            assert yk / Wk == pytest.approx(y / W, rel=1e-7), f"case {i}"
+            assert yk >= Wk and y >= W, f"case {i}"
+        assert grasp_env.is_force_closure(other) == grasp_env.is_force_closure(state), f"case {i}"
+        assert grasp_env.is_form_closure(other) == grasp_env.is_form_closure(state), f"case {i}"
+
+
+def test_grip_objective_below_its_bound_is_a_solver_error(monkeypatch):
+    """An LP optimum below the independent lower bound ``W`` is a solver failure, not a grip."""
+    state, _ = _parallel_faces_grip(SCENE, (-1.0, 1.0))
+    n = len(state.contacts)
+    fake = mech.lp.LPResult("optimal", np.full(n, 0.5 / n), 0.5, np.zeros(0), np.zeros(3))
+    monkeypatch.setattr(mech.lp, "solve", lambda *a, **kw: fake)
+    with pytest.raises(SolverError, match="lower bound"):
+        grasp_env.grip_objective(state)
+
+
 def _finger_case(q1, q2, thp=0.0):
     h = np.array([0.0, 0.71, thp, q1, q2])
     return h

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import yaml
 
+from grasp_env import scene as scene_mod
 from grasp_env.errors import SceneError
 from grasp_env.scene import Scene, bundled_scenes, load_scene, scene_from_dict
 
@@ -670,7 +671,76 @@ BAD_SCENES = [
     bad("missing-finger1-length", delv((*F0, "length")), r"fingers\[0\]: missing key", r"'length'"),
     bad("missing-finger2-angle", delv((*F1, "angle")), r"fingers\[1\]: missing key", r"'angle'"),
     bad("missing-object-vertices", delv(OV), r"object: missing key", r"'vertices'"),
-    # -- magnitudes, degrees and edges below the contact tolerance ------------------------
+    # -- ranges (scene module docstring), degrees, edges below the contact tolerance -----
+    bad("palm-width-below-range", setv(("palm", "width"), 1e-7), r"palm\.width", r"1e-07"),
+    bad("palm-width-above-range", setv(("palm", "width"), 1e7), r"palm\.width", r"10000000\.0"),
+    bad(
+        "palm-thickness-relative",
+        setv(("palm", "thickness"), 2000.0),
+        r"palm\.thickness must be within \[0\.001, 1000\] x palm\.width",
+        r"2000\.0",
+    ),
+    bad(
+        "palm-thickness-default-on-a-tiny-palm",
+        both(setv(("palm", "width"), 1e-4), delv(("palm", "thickness"))),
+        r"palm\.thickness .*palm\.width \(default\)",
+        r"0\.15",
+    ),
+    bad(
+        "finger1-thickness-below-range",
+        setv((*F0, "thickness"), 1e-4),
+        r"fingers\[0\]\.thickness",
+        r"0\.0001",
+    ),
+    bad(
+        "finger2-length-above-range", setv((*F1, "length"), 1e4), r"fingers\[1\]\.length", r"10000"
+    ),
+    bad(
+        "palm-pose-far-away",
+        setv(("palm", "pose", 0), 2e4),
+        r"palm\.pose\[0\].*10000 x palm\.width",
+        r"20000\.0",
+    ),
+    bad("vertex-far-away", shift_object(2e4, 0.0), r"object\.vertices\[0\]\[0\]", r"19999\.87"),
+    bad(
+        "object-below-size-range",
+        setv(OV, [[x * 1e-4, y * 1e-4] for x, y in FIG13_V]),
+        r"object\.vertices: the object's size",
+        r"6\.3\d*e-05",
+    ),
+    bad(
+        "object-above-size-range",
+        setv(OV, [[x * 2e3, y * 2e3] for x, y in FIG13_V]),
+        r"object\.vertices: the object's size",
+        r"1260\.0",
+    ),
+    bad("gravity-below-range", setv(("gravity",), 1e-10), r"gravity", r"1e-10"),
+    bad("gravity-above-range", setv(("gravity",), 1e10), r"gravity", r"10000000000\.0"),
+    bad("palm-density-below-range", setv(("palm", "density"), 1e-10), r"palm\.density", r"1e-10"),
+    bad(
+        "finger1-density-above-range",
+        setv((*F0, "density"), 1e10),
+        r"fingers\[0\]\.density",
+        r"10000000000\.0",
+    ),
+    bad(
+        "object-mass-too-light-for-its-area",
+        both(delv(("object", "density")), setv(("object", "mass"), 1e-11)),
+        r"object\.mass.*mean density",
+        r"1e-11",
+    ),
+    bad(
+        "object-mass-too-heavy-for-its-area",
+        both(delv(("object", "density")), setv(("object", "mass"), 1e9)),
+        r"object\.mass.*mean density",
+        r"1000000000\.0",
+    ),
+    bad(
+        "finger1-torque-limit-above-range",
+        setv((*F0, "torque_limits"), [-1e10, 50.0]),
+        r"fingers\[0\]\.torque_limits\[0\].*x object weight x palm\.width",
+        r"-10000000000\.0",
+    ),
     bad("palm-width-huge", setv(("palm", "width"), 1e308), r"palm\.width", r"1e\+308"),
     bad("object-density-huge", setv(("object", "density"), 1e200), r"object\.density", r"1e\+200"),
     bad(
@@ -742,6 +812,47 @@ def test_bad_scene_cases_change_a_valid_scene() -> None:
     load_scene(copy.deepcopy(BASE))  # the base itself is valid
     assert len(BAD_SCENES) >= 25
     assert len({p.id for p in BAD_SCENES}) == len(BAD_SCENES)
+
+
+def _fig13_weight() -> float:
+    return load_scene(copy.deepcopy(BASE)).object_weight
+
+
+def _all_densities(rho: float) -> Callable[[dict], None]:
+    def change(d: dict) -> None:
+        for body in (d["palm"], *d["fingers"], d["object"]):
+            body["density"] = rho
+
+    return change
+
+
+#: fig13's torque limits (50) exceed MAX_TORQUE object weights x palm widths once the weight
+#: is 1e-9 times smaller: those scenes leave the torques unlimited.
+UNLIMITED = both(delv((*F0, "torque_limits")), delv((*F1, "torque_limits")))
+
+RANGE_ENDS = {
+    "gravity-lowest": both(setv(("gravity",), scene_mod.GRAVITY_RANGE[0]), UNLIMITED),
+    "gravity-highest": setv(("gravity",), scene_mod.GRAVITY_RANGE[1]),
+    "densities-lowest": both(_all_densities(scene_mod.DENSITY_RANGE[0]), UNLIMITED),
+    "densities-highest": _all_densities(scene_mod.DENSITY_RANGE[1]),
+    "thinnest-finger": setv((*F0, "thickness"), scene_mod.LENGTH_RANGE[0]),
+    "torque-limits-at-bound": setv(
+        (*F1, "torque_limits"), [-0.999e9 * _fig13_weight(), 0.999e9 * _fig13_weight()]
+    ),
+    "far-along-x": both(
+        setv(("palm", "pose", 0), 0.999 * scene_mod.MAX_COORDINATE),
+        shift_object(0.999 * scene_mod.MAX_COORDINATE - BASE["palm"]["pose"][0], 0.0),
+    ),
+}
+
+
+@pytest.mark.parametrize("change", RANGE_ENDS.values(), ids=RANGE_ENDS.keys())
+def test_range_ends_are_accepted(change: Callable[[dict], None]) -> None:
+    """Scenes at the ends of the documented ranges load (the palm width's ends are run in
+    tests/test_invariance.py)."""
+    d = copy.deepcopy(BASE)
+    change(d)
+    load_scene(d)
 
 
 def test_infinite_torque_limits_are_accepted() -> None:

@@ -43,9 +43,11 @@ def _edge_ends(T: np.ndarray, L: np.ndarray) -> np.ndarray:
 @njit(cache=True)
 def violations(
     world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray, margin: float,
-    com: np.ndarray, g: np.ndarray,
+    com: np.ndarray, g: np.ndarray, length: float,
 ) -> tuple[float, np.ndarray, float, int, np.ndarray, int, float, float]:  # fmt: skip
-    """Violations of the active set ``keys`` at placement ``world``.
+    """Violations of the active set ``keys`` at placement ``world``, for gravity wrench ``g``
+    about ``com`` (forces in weights; moments are divided by ``length``, the palm width, so
+    that the residual's rows share units).
 
     Returns ``(gap, gap_key, depth, body, ends, lost, force, residual)``:
 
@@ -67,6 +69,7 @@ def violations(
     lost, force, residual = -1, 0.0, 0.0
     if m > 0:
         W = constraint_matrix(P, N, com).T.copy()
+        W[2] /= length  # moments in weight x palm width, like the forces' weight
         ok = False
         if m <= 3:
             lam, ok = independent_forces(W, g)
