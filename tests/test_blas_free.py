@@ -7,6 +7,9 @@ from :mod:`grasp_env.sim.dense`."""
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -67,3 +70,44 @@ def test_the_check_sees_blas_calls() -> None:
         ]
     )
     assert len(blas_uses(src)) == 4
+
+
+RUN = """
+import numpy as np, grasp_env
+sim = grasp_env.Simulator("fig13")
+state = sim.reset()
+q1, q2 = state.finger_angles
+state = sim.move_hand(state, fingers=(q1 + 0.8, q2 - 0.8))
+state = sim.move_hand(state, palm=state.hand[:3] + np.array([0.02, 0.05, 0.05]))
+forces = np.array([c.force for c in state.contacts])
+print(state.object_pose.tobytes().hex(), forces.tobytes().hex(), grasp_env.grip_objective(state))
+"""
+
+
+def run_in(env: dict[str, str | None]) -> str:
+    """The bits of a closing and lifting motion's end state, computed in a fresh process
+    with the given environment changes (None unsets)."""
+    full = dict(os.environ)
+    for key, value in env.items():
+        if value is None:
+            full.pop(key, None)
+        else:
+            full[key] = value
+    out = subprocess.run([sys.executable, "-c", RUN], env=full, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    return out.stdout
+
+
+def test_openblas_core_types_change_no_bit() -> None:
+    """The oldest kernels OpenBLAS has (Prescott: no FMA, no AVX) and Haswell's give the
+    same bits as the machine's own."""
+    unset = {"OPENBLAS_CORETYPE": None, "OPENBLAS_L2_SIZE": None}
+    own = run_in(unset)
+    assert run_in({"OPENBLAS_CORETYPE": "Prescott"}) == own
+    assert run_in({"OPENBLAS_CORETYPE": "Haswell", "OPENBLAS_L2_SIZE": "512"}) == own
+
+
+def test_interpreted_kernels_give_the_same_bits() -> None:
+    """The compiled kernels and the same source run as Python (``NUMBA_DISABLE_JIT=1``, how
+    to debug them) compute the same bits: no fused multiply-adds, the same order."""
+    assert run_in({"NUMBA_DISABLE_JIT": "1"}) == run_in({"NUMBA_DISABLE_JIT": None})
