@@ -22,7 +22,7 @@ import numpy as np
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env.scene import Scene
-from grasp_env.sim import clearance
+from grasp_env.sim import clearance, detection
 from grasp_env.sim.placement import world_points
 
 EDGE, TIP = 0, 1
@@ -170,99 +170,22 @@ def broad_phase(pl: Placement, margin: float) -> list[int]:
     return [int(b) for b in clearance.near_bodies(pl.world, pl.local.n_object, margin)]
 
 
-def candidate_gaps(
-    pl: Placement, bodies: list[int], slack: float = 0.0, max_gap: float = np.inf
-) -> list[tuple[ContactKey, float, float]]:
-    """Every vertex-edge pair of the object and ``bodies`` whose vertex projects onto the edge
-    and lies within ``max_gap`` of its line.
-
-    Returns ``(key, gap, t)`` for pairs with ``|gap| <= max_gap`` and ``t`` in [0, 1], widened
-    at both ends by ``slack`` (a length): events are located to within the contact
-    tolerance, so a vertex that has just reached an edge's end (a vertex-vertex touch) may
-    project a hair outside it (support: all object vertices). Vectorised over vertices and
-    edges of each body pair; only the pairs that pass are visited in Python.
-    """
-    out: list[tuple[ContactKey, float, float]] = []
-    obj, obj_n = pl.obj_W, pl.obj_n_W
-    obj_d = np.roll(obj, -1, axis=0) - obj
-    for body in bodies:
-        if body == geo.SUPPORT:
-            for k in np.nonzero(np.abs(obj[:, 1]) <= max_gap)[0]:
-                out.append(((body, EDGE, int(k), 0), float(obj[k, 1]), 0.5))
-            continue
-        poly, n = pl.hand_W[body - 1], pl.hand_n_W[body - 1]
-        d = np.roll(poly, -1, axis=0) - poly
-        # object vertex k on hand edge j, then hand vertex j on object edge k
-        for kind, verts, edges, normals, dirs in (
-            (EDGE, obj, poly, n, d),
-            (TIP, poly, obj, obj_n, obj_d),
-        ):
-            rel = verts[:, None, :] - edges[None, :, :]  # (vertex, edge, 2)
-            gap = (rel * normals[None]).sum(-1)
-            near = np.abs(gap) <= max_gap
-            if not near.any():
-                continue
-            L = np.sqrt((dirs * dirs).sum(-1))
-            t = (rel * dirs[None]).sum(-1) / (L * L)[None]
-            e = slack / L[None]
-            for i, j in zip(*np.nonzero(near & (t >= -e) & (t <= 1.0 + e)), strict=True):
-                key = (body, kind, int(i), int(j)) if kind == EDGE else (body, kind, int(j), int(i))
-                out.append((key, float(gap[i, j]), float(t[i, j])))
-    return out
-
-
-def _locally_valid(pl: Placement, key: ContactKey, tol: float) -> bool:
-    """True when the vertex's two adjacent edges leave on its own side of the edge's line.
-
-    For convex bodies that makes the edge's line separate them near the contact, so its
-    half-plane is a valid frictionless constraint. At a vertex-vertex touch this rejects the
-    candidate edges that would cut through the other body.
-    """
-    body, kind, k, j = key
-    if kind == EDGE:
-        verts, v = pl.obj_W, k
-        n = _UP if body == geo.SUPPORT else pl.hand_n_W[body - 1][j]
-    else:
-        verts, v = pl.hand_W[body - 1], j
-        n = pl.obj_n_W[k]  # the hand vertex's neighbours must stay outside the object
-    m = len(verts)
-    p = verts[v]
-    # Nearly flush edges (an edge along an edge) pass: the slack grows with the neighbour's
-    # distance, as for an angle of 1e-7 rad, and is at least a few tolerances (an edge that
-    # has just come to lie along another, located to within tol at both of its ends).
-    for nbr in (verts[v - 1], verts[(v + 1) % m]):
-        d = nbr - p
-        if n[0] * d[0] + n[1] * d[1] < -max(4.0 * tol, 1e-7 * float(np.hypot(d[0], d[1]))):
-            return False
-    return True
+_NO_KEYS = np.zeros((0, 4), dtype=np.int64)
 
 
 def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[ContactKey]:
-    """Contacts at a placement: vertex-edge pairs with ``|gap| <= tol`` whose edge separates.
+    """Contacts at a placement: vertex-edge pairs with ``|gap| <= tol`` whose edge separates
+    the bodies near the vertex, edge contacts first
+    (:func:`grasp_env.sim.detection.detect` gives the rules).
 
     An edge lying along an edge yields its two end contacts. Coincident duplicates (the same
     point and normal seen as both an edge and a tip contact) keep the edge-kind one, unless
     it is in ``exclude`` (a contact the simulator has just released: its twin takes over).
     """
-    margin = 10.0 * tol
-    keys: list[ContactKey] = []
-    seen: list[tuple[np.ndarray, np.ndarray]] = []
-    cands = sorted(
-        candidate_gaps(pl, broad_phase(pl, margin), slack=tol, max_gap=tol),
-        key=lambda c: c[0][1],
-    )  # edges first
-    for key, gap, _t in cands:
-        if abs(gap) > tol or key in exclude or not _locally_valid(pl, key, tol):
-            continue
-        p, n, *_ = pl.evaluate(key)
-        if any(
-            np.abs(p - p2).max() <= 2 * tol and n[0] * n2[0] + n[1] * n2[1] > 1 - 1e-9
-            for p2, n2 in seen
-        ):
-            continue
-        seen.append((p, n))
-        keys.append(key)
-    return keys
+    local = pl.local
+    ex = np.array(list(exclude), dtype=np.int64).reshape(-1, 4) if exclude else _NO_KEYS
+    keys = detection.detect(pl.world, local.n_object, local.n_vertices, tol, ex)
+    return [tuple(k) for k in keys.tolist()]
 
 
 def vertex_of(key: ContactKey) -> tuple[int, int, int]:

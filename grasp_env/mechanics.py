@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from grasp_env import fastlp, lp
+from grasp_env import fastlp, lp, simplex
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env.errors import SolverError
@@ -68,6 +68,9 @@ def W_O(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.nd
     along ``n_i`` at ``p_i``, moments about the centre of mass (``= V_ob^T``)."""
     return V_ob(points_W, normals_W, com_W).T
 
+
+#: Absolute tolerance of the grip LP, whose data are in units of the weight and palm width.
+GRIP_LP_TOL = 1e-10
 
 #: ``w / W``: the gravity wrench in units of the object's weight.
 _UNIT_GRAVITY = np.array([0.0, 1.0, 0.0])
@@ -201,8 +204,15 @@ def escape_direction(state: State) -> np.ndarray | None:
 
 
 def is_form_closure(state: State) -> bool:
-    """Form closure (section 2.5): with the hand fixed, ``V_ob dq >= 0`` only for ``dq = 0``."""
-    return escape_direction(state) is None
+    """Form closure (section 2.5): with the hand fixed, ``V_ob dq >= 0`` only for ``dq = 0``.
+
+    Decided exactly by :func:`grasp_env.fastlp.form_closure_fast` on the scaled rows
+    ``[n_i, r_i x n_i / rho]`` (the rows positively span R^3); :func:`escape_direction`
+    (HiGHS) gives the same answer and, when there is one, the twist that escapes.
+    """
+    _, _, _, V = _state_arrays(state)
+    rho = gyration_radius(state.scene)
+    return fastlp.form_closure_fast(V * np.array([1.0, 1.0, 1.0 / rho]))
 
 
 def _equilibrium_rows(V: np.ndarray, length: float) -> np.ndarray:
@@ -238,8 +248,9 @@ def grip_objective(state: State) -> float:
                            W_F c + tau = s           (finger moment balance, eq. 13 bottom)
                            tau_min <= tau <= tau_max (eqs. 35-36),  c >= 0 (eq. 34)
 
-    as a direct LP in ``c`` with ``tau = s - W_F c`` substituted; the paper's null-space form
-    (eqs. 29-33) is the same problem (tests compare the two). The LP is solved in units of the
+    as a direct LP in ``c`` with ``tau = s - W_F c`` substituted, by the compiled simplex
+    method of :mod:`grasp_env.simplex` (the tests compare it with HiGHS and with the paper's
+    null-space form, eqs. 29-33). The LP is solved in units of the
     object's weight ``W`` (forces) and ``W`` x palm width (moments, torques), so its answer
     does not depend on the scene's units.
 
@@ -264,25 +275,24 @@ def grip_objective(state: State) -> float:
         if np.isfinite(tmin[k]):
             rows.append(WF[k])
             rhs.append(s[k] - tmin[k])
-    A_ub = np.array(rows) if rows else None
-    b_ub = np.array(rhs) if rows else None
-    res = lp.solve(
-        np.ones(len(n)),
-        A_ub=A_ub,
-        b_ub=b_ub,
-        A_eq=_equilibrium_rows(V, L),
-        b_eq=_UNIT_GRAVITY,
-        bounds=(0, None),
+    A_ub = np.array(rows).reshape(-1, len(n))
+    b_ub = np.array(rhs, dtype=float)
+    status, _, value = simplex.solve(
+        np.ones(len(n)), _equilibrium_rows(V, L), _UNIT_GRAVITY, A_ub, b_ub, GRIP_LP_TOL
     )
-    if res.status != "optimal":
+    if status == simplex.INFEASIBLE:
         return math.inf
+    if status != simplex.OPTIMAL:
+        raise SolverError(
+            f"grip LP: {simplex.STATUS_NAMES[status]}", status=simplex.STATUS_NAMES[status]
+        )
     # The triangle inequality on the force rows (|sum c_i n_i| = 1 in units of W) bounds the
     # optimum below independently of the solver.
     bound = 1.0 / float(geo.norms(n).max())
-    if res.value < bound * (1.0 - 1e-6):
+    if value < bound * (1.0 - 1e-6):
         raise SolverError(
-            f"grip LP optimum {res.value!r} W is below its lower bound {bound!r} W",
+            f"grip LP optimum {value!r} W is below its lower bound {bound!r} W",
             status="inconsistent",
         )
-    # Within HiGHS's tolerance (1e-7 of the weight) of the bound: rounding, clamp to it.
-    return W * max(res.value, bound)
+    # Within the LP's tolerance of the bound: rounding, clamp to it.
+    return W * max(value, bound)

@@ -712,8 +712,8 @@ def test_grip_objective_below_its_bound_is_a_solver_error(monkeypatch):
     """An LP optimum below the independent lower bound ``W`` is a solver failure, not a grip."""
     state, _ = _parallel_faces_grip(SCENE, (-1.0, 1.0))
     n = len(state.contacts)
-    fake = mech.lp.LPResult("optimal", np.full(n, 0.5 / n), 0.5, np.zeros(0), np.zeros(3))
-    monkeypatch.setattr(mech.lp, "solve", lambda *a, **kw: fake)
+    fake = (mech.simplex.OPTIMAL, np.full(n, 0.5 / n), 0.5)
+    monkeypatch.setattr(mech.simplex, "solve", lambda *a, **kw: fake)
     with pytest.raises(SolverError, match="lower bound"):
         grasp_env.grip_objective(state)
 

@@ -1,0 +1,162 @@
+"""Contact detection: the vertex-edge pairs of a placement that touch, as contact keys.
+
+The placement is the ``world`` array of :func:`grasp_env.sim.placement.world_points`
+(object vertices, hand vertices, then their outward edge normals). A contact key is a row
+``(body, kind, object_feature, hand_feature)``: kind 0 (edge) puts object vertex
+``object_feature`` on edge ``hand_feature`` of hand body ``body`` (the support's line y = 0
+has the one edge 0), kind 1 (tip) puts vertex ``hand_feature`` of hand body ``body`` on
+object edge ``object_feature`` (from vertex k to k + 1).
+
+A pair is a contact when all of these hold:
+
+* the body is near the object (:func:`grasp_env.sim.clearance.near_bodies`, margin
+  ``10 tol``);
+* the vertex lies within ``tol`` of the edge's line (``|gap| <= tol``);
+* its projection falls on the edge, widened at both ends by ``tol`` (a length): events are
+  located to within the tolerance, so a vertex that has just reached an edge's end (a
+  vertex-vertex touch) may project a hair outside it; on the support every vertex counts;
+* the vertex's two adjacent edges leave on its own side of the edge's line (locally
+  valid): for convex bodies that line then separates them near the contact, so its
+  half-plane is a valid frictionless constraint. At a vertex-vertex touch this rejects the
+  candidate edges that would cut through the other body. Nearly flush edges (an edge along
+  an edge) pass: a neighbour may dip behind the line by ``max(4 tol, 1e-7 |d|)``, an angle
+  of 1e-7 rad and at least a few tolerances (an edge that has just come to lie along
+  another, located to within ``tol`` at both of its ends);
+* it is not in ``exclude``;
+* no contact kept before it has the same point (to within ``2 tol`` in each coordinate)
+  and normal (cosine above ``1 - 1e-9``): a vertex-vertex touch along flush edges is seen
+  both as an edge and as a tip contact, and the one kept is the first.
+
+Pairs are visited edge contacts first (the support, then hand bodies 1-3, each by object
+vertex then hand edge), then tip contacts (hand bodies 1-3, each by hand vertex then object
+edge), so that of coincident duplicates the edge-kind one is kept. An edge lying along an
+edge yields its two end contacts.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from grasp_env.sim.clearance import near_bodies
+from grasp_env.sim.placement import EDGE, SUPPORT, TIP
+
+#: Cosine above which two contact normals count as the same.
+SAME_NORMAL = 1.0 - 1e-9
+#: Angle (rad) by which a locally valid vertex's neighbour may dip behind the edge's line.
+FLUSH_ANGLE = 1e-7
+
+
+@njit(cache=True)
+def _locally_valid(
+    world: np.ndarray, first: int, count: int, v: int, nx: float, ny: float, tol: float
+) -> bool:
+    """True when both neighbours of vertex ``first + v`` of the polygon in rows ``first ..
+    first + count - 1`` lie on the side of the line through it that the normal ``(nx, ny)``
+    points to (the vertex's own side of the edge it touches), up to the flush slack."""
+    px, py = world[first + v, 0], world[first + v, 1]
+    for nbr in (first + (v - 1) % count, first + (v + 1) % count):
+        dx, dy = world[nbr, 0] - px, world[nbr, 1] - py
+        if nx * dx + ny * dy < -max(4.0 * tol, FLUSH_ANGLE * math.hypot(dx, dy)):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _excluded(exclude: np.ndarray, body: int, kind: int, k: int, j: int) -> bool:
+    """Whether the key ``(body, kind, k, j)`` is a row of ``exclude``."""
+    for i in range(exclude.shape[0]):
+        if (
+            exclude[i, 0] == body
+            and exclude[i, 1] == kind
+            and exclude[i, 2] == k
+            and exclude[i, 3] == j
+        ):
+            return True
+    return False
+
+
+@njit(cache=True)
+def _on_edge(
+    world: np.ndarray, v: int, a: int, b: int, nrm: int, slack: float
+) -> tuple[bool, float]:
+    """Whether point row ``v`` projects onto the edge from point row ``a`` to ``b``
+    (widened by ``slack`` at both ends), and its gap to the edge's line (normal row
+    ``nrm``)."""
+    rx, ry = world[v, 0] - world[a, 0], world[v, 1] - world[a, 1]
+    dx, dy = world[b, 0] - world[a, 0], world[b, 1] - world[a, 1]
+    gap = rx * world[nrm, 0] + ry * world[nrm, 1]
+    L = math.sqrt(dx * dx + dy * dy)
+    t = (rx * dx + ry * dy) / (L * L)
+    e = slack / L
+    return t >= -e and t <= 1.0 + e, gap
+
+
+@njit(cache=True)
+def _keep(
+    out: np.ndarray, seen: np.ndarray, count: int, key: tuple, p: tuple, n: tuple, tol: float
+) -> int:
+    """Append ``key`` with point ``p`` and normal ``n`` unless a kept contact has the same
+    point and normal; the new count."""
+    for i in range(count):
+        if (
+            abs(p[0] - seen[i, 0]) <= 2.0 * tol
+            and abs(p[1] - seen[i, 1]) <= 2.0 * tol
+            and n[0] * seen[i, 2] + n[1] * seen[i, 3] > SAME_NORMAL
+        ):
+            return count
+    out[count, 0], out[count, 1], out[count, 2], out[count, 3] = key
+    seen[count, 0], seen[count, 1], seen[count, 2], seen[count, 3] = p[0], p[1], n[0], n[1]
+    return count + 1
+
+
+@njit(cache=True)
+def detect(
+    world: np.ndarray, n_object: int, n_vertices: int, tol: float, exclude: np.ndarray
+) -> np.ndarray:
+    """Contact keys (m, 4) at the placement ``world``: the vertex-edge pairs within ``tol``
+    that pass the rules of the module docstring, skipping the rows of ``exclude`` (e, 4)."""
+    bodies = near_bodies(world, n_object, 10.0 * tol)
+    cap = n_object * (1 + 2 * 4 * 3)  # support, then both kinds with 3 four-sided bodies
+    out = np.empty((cap, 4), dtype=np.int64)
+    seen = np.empty((cap, 4))  # point and normal of each kept contact
+    count = 0
+    for body in bodies:  # object vertex k on edge j of the body
+        if body == SUPPORT:
+            for k in range(n_object):
+                y = world[k, 1]
+                if (
+                    abs(y) <= tol
+                    and not _excluded(exclude, SUPPORT, EDGE, k, 0)
+                    and _locally_valid(world, 0, n_object, k, 0.0, 1.0, tol)
+                ):
+                    key = (SUPPORT, EDGE, k, 0)
+                    count = _keep(out, seen, count, key, (world[k, 0], y), (0.0, 1.0), tol)
+            continue
+        first = n_object + 4 * (body - 1)
+        for k in range(n_object):
+            for j in range(4):
+                a, nrm = first + j, n_vertices + first + j
+                on, gap = _on_edge(world, k, a, first + (j + 1) % 4, nrm, tol)
+                if not (abs(gap) <= tol and on) or _excluded(exclude, body, EDGE, k, j):
+                    continue
+                nx, ny = world[nrm, 0], world[nrm, 1]
+                if _locally_valid(world, 0, n_object, k, nx, ny, tol):
+                    key = (body, EDGE, k, j)
+                    count = _keep(out, seen, count, key, (world[k, 0], world[k, 1]), (nx, ny), tol)
+    for body in bodies:  # vertex j of the body on object edge k
+        if body == SUPPORT:
+            continue
+        first = n_object + 4 * (body - 1)
+        for j in range(4):
+            for k in range(n_object):
+                on, gap = _on_edge(world, first + j, k, (k + 1) % n_object, n_vertices + k, tol)
+                if not (abs(gap) <= tol and on) or _excluded(exclude, body, TIP, k, j):
+                    continue
+                nx, ny = world[n_vertices + k, 0], world[n_vertices + k, 1]
+                if _locally_valid(world, first, 4, j, nx, ny, tol):
+                    p = (world[first + j, 0], world[first + j, 1])
+                    count = _keep(out, seen, count, (body, TIP, k, j), p, (-nx, -ny), tol)
+    return out[:count].copy()
