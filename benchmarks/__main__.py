@@ -1,27 +1,32 @@
-"""Run the benchmark suite of issue 7 and write ``benchmarks/results/*.md``.
+"""Run the benchmark suite and write its pages (default ``runs/benchmarks/*.md``).
 
 Usage: ``python -m benchmarks [--quick] [--only NAME ...] [--out DIR]`` from the repository
-root (full suite about 15 minutes, ``--quick`` about one). Names: throughput,
+root (full suite about 16 minutes, ``--quick`` about one). ``--out benchmarks/results``
+updates the committed pages; by default nothing shipped is overwritten. Names: throughput,
 work_precision, profile, memory, planner (the scripted planner on random shapes,
-``planner_shapes.py``), ppo (PPO training throughput, ``ppo_throughput.py``; left out of
-``--quick`` unless named with ``--only``).
+``planner_shapes.py``), blas_variation (seeded episodes under several OpenBLAS core types),
+step_times (the step-time tail on adversarial shapes), ppo (PPO training throughput,
+``ppo_throughput.py``; left out of ``--quick`` unless named with ``--only``).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 from benchmarks import (
+    blas_variation,
     memory,
     planner_shapes,
     ppo_throughput,
     profile_step,
+    step_times,
     throughput,
     work_precision,
 )
-from benchmarks.common import RESULTS, headless
+from benchmarks.common import OUT, headless, out_dir_problem
 
 SUITE = {
     "throughput": lambda quick, out: throughput.run(quick, out / "throughput.md"),
@@ -31,6 +36,8 @@ SUITE = {
     "planner": lambda quick, out: planner_shapes.run(
         out / "planner_shapes.md", shapes=2 if quick else 12
     ),
+    "blas_variation": lambda quick, out: blas_variation.run(out, episodes=3 if quick else 200),
+    "step_times": lambda quick, out: step_times.run(out, episodes=3 if quick else 200),
     "ppo": lambda quick, out: ppo_throughput.run(quick, out / "ppo_throughput.md"),
 }
 QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget
@@ -38,10 +45,18 @@ QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="small budgets (about one minute)")
+    ap.add_argument("--quick", action="store_true", help="small budgets (about a minute)")
     ap.add_argument("--only", nargs="+", choices=list(SUITE))
-    ap.add_argument("--out", type=Path, default=RESULTS, help="results folder")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=OUT,
+        help="results folder (default runs/benchmarks; benchmarks/results: the committed one)",
+    )
     args = ap.parse_args(argv)
+    if problem := out_dir_problem(args.out):
+        print(f"benchmarks: --out {problem}", file=sys.stderr)
+        return 2
     headless()
     names = args.only or [n for n in SUITE if not (args.quick and n in QUICK_SKIP)]
     start = time.perf_counter()

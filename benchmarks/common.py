@@ -13,10 +13,12 @@ from collections.abc import Callable, Sequence
 from importlib import metadata
 from pathlib import Path
 
-#: Default folder of the markdown results.
+#: The committed results (``--out benchmarks/results`` updates them).
 RESULTS = Path(__file__).resolve().parent / "results"
 #: The repository root.
 REPO = Path(__file__).resolve().parent.parent
+#: Default output folder: commands never overwrite the shipped results unless asked.
+OUT = REPO / "runs" / "benchmarks"
 
 
 def headless() -> None:
@@ -74,6 +76,20 @@ def machine_line() -> str:
         f"{versions}; grasp_env at {git_commit()}; "
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; load average {load}."
     )
+
+
+def out_dir_problem(path: Path) -> str | None:
+    """Why results cannot go to folder ``path`` (created if missing), or None if they can:
+    checked before any work starts."""
+    if path.exists() and not path.is_dir():
+        return f"{path} exists and is not a directory"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"{path} cannot be created ({exc.strerror or exc})"
+    if not os.access(path, os.W_OK | os.X_OK):
+        return f"{path} is not writable"
+    return None
 
 
 def table(header: Sequence[str], rows: Sequence[Sequence[object]], align: str = "") -> list[str]:

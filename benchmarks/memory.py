@@ -27,7 +27,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from benchmarks.common import RESULTS, table, write
+from benchmarks.common import OUT, table, write
 
 STARTUP = """
 import json, time
@@ -133,7 +133,7 @@ def child(code: str, *args: object, timeout: float = 300.0) -> dict:
 
 def run(
     quick: bool = False,
-    out: Path = RESULTS / "memory.md",
+    out: Path = OUT / "memory.md",
     steps: int | None = None,
     repeat: int | None = None,
     workers: int = 8,
@@ -180,7 +180,7 @@ def run(
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="20 steps, 3 start-up repeats, fork only")
-    ap.add_argument("--out", type=Path, default=RESULTS / "memory.md")
+    ap.add_argument("--out", type=Path, default=OUT / "memory.md")
     args = ap.parse_args(argv)
     run(args.quick, args.out)
     return 0

@@ -21,7 +21,7 @@ from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from benchmarks.common import RESULTS, table, write
+from benchmarks.common import OUT, table, write
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         default=1,
         help="plans at a time (CPU time is reported per plan: more workers share the cores)",
     )
-    ap.add_argument("--out", type=Path, default=RESULTS / "planner_shapes.md")
+    ap.add_argument("--out", type=Path, default=OUT / "planner_shapes.md")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # worker: plan one shape
     args = ap.parse_args(argv)
     if args.one is not None:

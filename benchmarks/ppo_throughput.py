@@ -15,7 +15,7 @@ import os
 import time
 from pathlib import Path
 
-from benchmarks.common import REPO, RESULTS, headless, table, write
+from benchmarks.common import OUT, REPO, headless, table, write
 
 VEC_ENVS = ("subproc", "dummy")
 
@@ -44,7 +44,7 @@ def steps_per_second(entry: dict, steps: int, vec_env: str, seed: int = 0) -> fl
 
 def run(
     quick: bool = False,
-    out: Path = RESULTS / "ppo_throughput.md",
+    out: Path = OUT / "ppo_throughput.md",
     entry_name: str = "fig13_fingers",
 ) -> Path:
     """Measure both envs with both vector-env classes and write the markdown page."""
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one rollout per measurement")
     parser.add_argument("--entry", default="fig13_fingers", help="configs/ppo.yml entry")
-    parser.add_argument("--out", type=Path, default=RESULTS / "ppo_throughput.md")
+    parser.add_argument("--out", type=Path, default=OUT / "ppo_throughput.md")
     args = parser.parse_args(argv)
     run(args.quick, args.out, args.entry)
 

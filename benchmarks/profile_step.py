@@ -33,7 +33,7 @@ from pathlib import Path
 import gymnasium as gym
 
 import grasp_env
-from benchmarks.common import RESULTS, git_commit, headless, machine_line, median_time, table
+from benchmarks.common import OUT, git_commit, headless, machine_line, median_time, table
 from benchmarks.throughput import RandomActions
 from benchmarks.work_precision import closing_motion
 
@@ -214,7 +214,7 @@ CONFIGS = {"default": {}, "palm_control": {"palm_control": True}}
 
 def run(
     quick: bool = False,
-    out: Path = RESULTS / "profile.md",
+    out: Path = OUT / "profile.md",
     steps: int | None = None,
     baseline: Path | None = None,
     closing: bool = True,
@@ -261,7 +261,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="40 steps per configuration")
     ap.add_argument("--steps", type=int, help="random-action steps per configuration")
     ap.add_argument("--baseline", type=Path, help="an older profile.json to compare with")
-    ap.add_argument("--out", type=Path, default=RESULTS / "profile.md")
+    ap.add_argument("--out", type=Path, default=OUT / "profile.md")
     args = ap.parse_args(argv)
     run(args.quick, args.out, args.steps, args.baseline)
     return 0

@@ -1,11 +1,12 @@
 """Soak test of ``FrictionlessGrasp-v0``: many random-action steps on many random shapes.
 
 Every shape is a random convex polygon (3-12 vertices, diameter 5%-80% of the palm width,
-aspect up to 1:20, mass 1e-3..10, with nearly collinear vertices, very short edges, nearly
-parallel edges or slivers mixed in: :func:`stress_scene`) in the hand set-up of the fig13
-scene. Each worker process runs its share of the shapes; on each shape an env with palm
-control takes ``steps / shapes`` random actions (reset on termination), and after every step
-the returned ``info`` is checked by :func:`check_state`, an independent re-computation of the
+aspect up to 1:30, density 1e-3..1e3, with nearly collinear vertices, very short edges, nearly
+parallel edges, slivers, near-circles and a bulge on the resting edge mixed in:
+:func:`random_stress_scene`) in the hand set-up of the fig13 scene. Each worker process
+runs its share of the shapes; on each shape an env with palm control takes
+``steps / shapes`` random actions (reset on termination), and after every step the returned
+``info`` is checked by :func:`check_state`, an independent re-computation of the
 state's invariants (it does not use :mod:`grasp_env.geometry`, :mod:`grasp_env.kinematics` or
 :mod:`grasp_env.contacts`):
 
@@ -20,8 +21,10 @@ state's invariants (it does not use :mod:`grasp_env.geometry`, :mod:`grasp_env.k
 Exceptions, ``info["sim_error"]`` terminations and invariant violations are counted, and the
 first few of each are written out with the seed and shape index that reproduce them.
 
-Progress is appended to a JSON-lines checkpoint after every shape, so an interrupted run
-resumes where it stopped (same ``--seed``, ``--steps``, ``--shapes``).
+Progress is appended to a JSON-lines checkpoint beside the report after every shape, so an
+interrupted run resumes where it stopped (same ``--seed``, ``--steps``, ``--shapes``). The
+report goes to ``runs/benchmarks/soak.md`` unless ``--out`` says otherwise
+(``--out benchmarks/results/soak.md`` updates the committed page).
 
 Usage::
 
@@ -49,17 +52,32 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linprog
 
+#: The committed results (``--out benchmarks/results/soak.md`` updates them) and the default
+#: output folder (the repository never overwrites shipped files unless asked).
 RESULTS = Path(__file__).resolve().parent / "results"
+OUT = Path(__file__).resolve().parents[1] / "runs" / "benchmarks"
+#: Version of the shape population of :func:`random_stress_scene`, part of the checkpoint's
+#: name: a checkpoint written with other shapes is never resumed.
+POPULATION = 2
 
 #: Equilibrium residual and descent-LP optimum allowed, as a fraction of the object's weight.
 EQ_RTOL = 1e-7
 #: Slack for floating-point rounding on top of ``contact_tol``, as a fraction of the palm width.
 ROUNDING = 1e-13
-#: Shape kinds drawn by :func:`stress_polygon`.
 #: Gap between the hanging longer finger's tip (or the object's top) and the palm height,
 #: in palm widths (the paper's "just high enough" set-up).
 CLEARANCE = 0.01
-KINDS = ("plain", "collinear", "short_edge", "parallel", "sliver")
+#: Shape kinds drawn by :func:`stress_polygon`.
+KINDS = ("plain", "collinear", "short_edge", "parallel", "sliver", "near_circle", "bulge")
+#: Shape kinds drawn by :func:`random_stress_scene`: :data:`KINDS` and a bulge sunk into the
+#: support (:func:`bulge_polygon` resting on the bulge's neighbours).
+SCENE_KINDS = (*KINDS, "bulge_sunk")
+#: Ranges of :func:`random_stress_scene`: largest aspect ratio, density (mass per unit area,
+#: palm widths squared), and the offset of a resting-edge bulge's vertex from the line through
+#: its neighbours (palm widths).
+MAX_ASPECT = 30.0
+DENSITY_RANGE = (1e-3, 1e3)
+BULGE_RANGE = (1e-12, 1e-9)
 
 
 # ---------------------------------------------------------------------------------------
@@ -320,14 +338,14 @@ def check_state(
 def rest_on_stable_edge(v: np.ndarray) -> np.ndarray:
     """Turn a CCW polygon so that its most stable edge (the centroid projecting farthest from
     both ends) lies on ``y = 0`` as edge 0, with the centroid at ``x = 0``."""
-    from grasp_env.geometry import polygon_centroid
+    from grasp_env.geometry import norms, polygon_centroid, rotate
 
     c = polygon_centroid(v)
     d = np.roll(v, -1, axis=0) - v
     t = ((c - v) * d).sum(axis=1) / (d * d).sum(axis=1)
-    k = int(np.argmax(np.minimum(t, 1.0 - t) * np.linalg.norm(d, axis=1)))
+    k = int(np.argmax(np.minimum(t, 1.0 - t) * norms(d)))
     phi = math.atan2(d[k, 1], d[k, 0])
-    v = np.roll(v @ rot(-phi).T, -k, axis=0)
+    v = np.roll(rotate(v, -phi), -k, axis=0)
     v = v - np.array([polygon_centroid(v)[0], v[0, 1]])
     v[:2, 1] = 0.0
     return v
@@ -352,10 +370,16 @@ def stress_polygon(
             outside its midpoint: two nearly collinear edges); ``"short_edge"`` (a corner cut
             ``eps * size`` deep: a very short edge); ``"parallel"`` (a quadrilateral whose top
             and sides are within ``eps`` rad of parallel to the base and to each other);
-            ``"sliver"`` (a rectangle of aspect ``aspect`` lying flat).
-        eps: the degeneracy's size (1e-6..1e-2).
+            ``"sliver"`` (a rectangle of aspect ``aspect`` lying flat); ``"near_circle"``
+            (8-12 vertices evenly spaced, up to a tenth of a gap, on an ellipse of aspect
+            1..1.05; ``n`` and ``aspect`` are overridden); ``"bulge"`` (a vertex added inside
+            the resting edge, just outside the line through its neighbours: resting on it and
+            one neighbour, the other neighbour just above the support; :func:`bulge_polygon`).
+        eps: the degeneracy's size (1e-12..1e-2 for ``"collinear"``, 1e-6..1e-2 otherwise;
+            unused by the near-circle and bulge kinds).
     """
     from grasp_env.envs.shapes import random_convex_polygon
+    from grasp_env.geometry import norms
 
     if kind == "parallel":
         b, h = size / math.hypot(1.0, 1.0 / aspect), size / aspect / math.hypot(1.0, 1.0 / aspect)
@@ -368,6 +392,15 @@ def stress_polygon(
         b = size / math.hypot(1.0, 1.0 / aspect)
         h = b / aspect
         return rest_on_stable_edge(np.array([[-b / 2, 0.0], [b / 2, 0.0], [b / 2, h], [-b / 2, h]]))
+    if kind == "near_circle":
+        m = int(rng.integers(8, 13))
+        angles = 2 * math.pi * (np.arange(m) + rng.uniform(-0.1, 0.1, m)) / m
+        ratio = 1.0 + 0.05 * rng.uniform()
+        v = np.stack([np.cos(angles), ratio * np.sin(angles)], axis=1)
+        v *= size / float(norms(v[:, None] - v[None]).max())
+        return rest_on_stable_edge(v)
+    if kind == "bulge":
+        return bulge_polygon(rng, n, size, aspect, str(rng.choice(["left", "right"])))
     m = min(n, 11) if kind in ("collinear", "short_edge") else n
     v = random_convex_polygon(rng, (m, m), (size, size), (aspect, aspect))
     if kind == "collinear":
@@ -380,21 +413,85 @@ def stress_polygon(
         k = int(rng.integers(2, len(v))) if len(v) > 2 else 2
         p, prv, nxt = v[k], v[k - 1], v[(k + 1) % len(v)]
         cut = eps * size
-        a = p + cut * (prv - p) / np.linalg.norm(prv - p)
-        b = p + cut * (nxt - p) / np.linalg.norm(nxt - p)
+        a = p + cut * (prv - p) / norms(prv - p)
+        b = p + cut * (nxt - p) / norms(nxt - p)
         v = np.concatenate([v[:k], [a, b], v[k + 1 :]])
     return rest_on_stable_edge(v)
 
 
+def bulge_polygon(
+    rng: np.random.Generator, n: int, size: float, aspect: float, rest: str
+) -> np.ndarray:
+    """A random convex polygon whose resting edge has a vertex added inside it, a distance
+    ``d`` of 1e-12..1e-9 palm widths (log-uniform, ``BULGE_RANGE``) outside the line through
+    its neighbours: a resting edge that is nearly but not exactly straight. (On the inner side
+    the polygon would not be convex, which scenes refuse.)
+
+    Args:
+        rng: the random generator.
+        n: vertex count of the base polygon (3..11 are used; the bulge adds one).
+        size: diameter, in palm widths.
+        aspect: aspect ratio of the ellipse the base vertices lie on (>= 1).
+        rest: ``"left"`` or ``"right"``: resting on the added vertex and its left or right
+            neighbour (edge 0 on ``y = 0``), the other neighbour about ``d`` above the support
+            (sheared by about ``d`` over the object); ``"neighbours"``: resting on both
+            neighbours, the added vertex ``d`` below the support, inside the contact tolerance
+            (edge 0 is not on ``y = 0``: a scene, not a :func:`stress_polygon`).
+
+    Returns:
+        CCW vertices, the added one between vertices 0 and 1 of the base polygon's resting edge
+        on :func:`rest_on_stable_edge`, centroid at ``x = 0``.
+    """
+    from grasp_env.envs.shapes import random_convex_polygon
+
+    for _ in range(10):
+        v = rest_on_stable_edge(
+            random_convex_polygon(rng, (min(n, 11),) * 2, (size,) * 2, (aspect,) * 2)
+        )
+        a, b = v[0].copy(), v[1].copy()
+        d = 10 ** rng.uniform(*np.log10(BULGE_RANGE))
+        t = rng.uniform(0.3, 0.7)
+        mid = a + t * (b - a) - np.array([0.0, d])
+        v = np.insert(v, 1, mid, axis=0)  # [a, mid, b, ...]
+        if rest == "left":  # shear y by d over a..mid: a and mid on the support
+            v[:, 1] += d * (v[:, 0] - a[0]) / (mid[0] - a[0])
+            v[:2, 1] = 0.0
+        elif rest == "right":  # shear about b: mid and b on the support; mid first
+            v[:, 1] += d * (b[0] - v[:, 0]) / (b[0] - mid[0])
+            v[1:3, 1] = 0.0
+            v = np.roll(v, -1, axis=0)
+        elif rest != "neighbours":
+            raise ValueError(f"rest must be left, right or neighbours, got {rest!r}")
+        if rest == "neighbours" or v[2:, 1].min() > 0.0:
+            v[:, 0] -= polygon_centroid_x(v)
+            return v
+    raise RuntimeError("no bulge polygon clear of the support in 10 draws")
+
+
+def polygon_centroid_x(v: np.ndarray) -> float:
+    """The x of a polygon's centroid."""
+    from grasp_env.geometry import polygon_centroid
+
+    return float(polygon_centroid(v)[0])
+
+
 def stress_scene(
-    polygon: np.ndarray, mass: float, base: str = "fig13", x0: float = 0.0
+    polygon: np.ndarray,
+    mass: float | None = None,
+    base: str = "fig13",
+    x0: float = 0.0,
+    *,
+    density: float | None = None,
 ) -> dict[str, Any]:
-    """A scene dict: ``polygon`` (resting on y = 0, centroid at x = 0) at ``x0`` with ``mass``,
-    in ``base``'s hand, palm centred over the polygon's extent just above the longer finger's
-    reach of the support (or of the object's top), fingers hanging straight down."""
+    """A scene dict: ``polygon`` (resting on y = 0, centroid at x = 0) at ``x0`` with ``mass``
+    or ``density`` (one of them), in ``base``'s hand, palm centred over the polygon's extent
+    just above the longer finger's reach of the support (or of the object's top), fingers
+    hanging straight down."""
     import grasp_env
     from grasp_env.envs.shapes import scene_to_dict
 
+    if (mass is None) == (density is None):
+        raise ValueError("give either mass or density")
     scene = grasp_env.load_scene(base)
     d = scene_to_dict(scene)
     v = np.asarray(polygon, float) + np.array([x0, 0.0])
@@ -404,26 +501,34 @@ def stress_scene(
     for f in d["fingers"]:
         f["angle"] = -0.5 * math.pi
     d["name"] = "stress"
-    d["object"] = {"vertices": v.tolist(), "mass": float(mass)}
+    d["object"] = {"vertices": v.tolist()}
+    if mass is not None:
+        d["object"]["mass"] = float(mass)
+    else:
+        d["object"]["density"] = float(density)
     return d
 
 
-def random_stress_scene(rng: np.random.Generator) -> dict[str, Any]:
-    """A random :func:`stress_scene` over the full stress ranges (for the soak)."""
+def random_stress_scene(
+    rng: np.random.Generator, kinds: tuple[str, ...] = SCENE_KINDS
+) -> dict[str, Any]:
+    """A random :func:`stress_scene` over the full stress ranges (for the soak): a kind drawn
+    from ``kinds``, 3-12 vertices, diameter 0.05-0.8 palm widths, aspect 1..``MAX_ASPECT`` and
+    density over ``DENSITY_RANGE`` (both log-uniform). ``description`` holds the kind."""
     from grasp_env.errors import SceneError
     from grasp_env.scene import load_scene
 
     for _ in range(100):
-        kind = str(rng.choice(KINDS))
-        poly = stress_polygon(
-            rng,
-            n=int(rng.integers(3, 13)),
-            size=float(rng.uniform(0.05, 0.8)),
-            aspect=float(np.exp(rng.uniform(0.0, math.log(20.0)))),
-            kind=kind,
-            eps=float(10 ** rng.uniform(-6, -2)),
-        )
-        d = stress_scene(poly, mass=float(10 ** rng.uniform(-3, 1)))
+        kind = str(rng.choice(kinds))
+        n = int(rng.integers(3, 13))
+        size = float(rng.uniform(0.05, 0.8))
+        aspect = float(np.exp(rng.uniform(0.0, math.log(MAX_ASPECT))))
+        if kind == "bulge_sunk":
+            poly = bulge_polygon(rng, n, size, aspect, "neighbours")
+        else:
+            eps = float(10 ** rng.uniform(-12 if kind == "collinear" else -6, -2))
+            poly = stress_polygon(rng, n, size, aspect, kind, eps)
+        d = stress_scene(poly, density=float(10 ** rng.uniform(*np.log10(DENSITY_RANGE))))
         try:
             load_scene(d)
         except SceneError:
@@ -436,6 +541,14 @@ def random_stress_scene(rng: np.random.Generator) -> dict[str, Any]:
 # ---------------------------------------------------------------------------------------
 # The soak
 # ---------------------------------------------------------------------------------------
+
+
+def random_action(rng: np.random.Generator) -> np.ndarray:
+    """A random palm-control action, biased to closing the fingers (``a0, a1`` uniform in
+    ``[-0.4, 1]``, the palm's in ``[-1, 1]``) so that grasps, lifts and jams happen."""
+    a = rng.uniform(-1.0, 1.0, 5)
+    a[:2] = rng.uniform(-0.4, 1.0, 2)
+    return a.astype(np.float32)
 
 
 def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
@@ -474,7 +587,6 @@ def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
     tol = env.contact_tol * env.unwrapped.scenes[0].palm.width
     space: gym.spaces.Box = env.observation_space
     need_reset = True
-    # Biased to closing the fingers (a0, a1 > 0) so that grasps, lifts and jams happen.
     while rec["steps"] < steps:
         try:
             if need_reset:
@@ -482,9 +594,7 @@ def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
                 rec["episodes"] += 1
                 need_reset, ep_steps = False, 0
             else:
-                a = rng.uniform(-1.0, 1.0, 5)
-                a[:2] = rng.uniform(-0.4, 1.0, 2)
-                obs, _, term, trunc, info = env.step(a.astype(np.float32))
+                obs, _, term, trunc, info = env.step(random_action(rng))
                 rec["steps"] += 1
                 ep_steps += 1
                 need_reset = term or trunc or ep_steps >= 200
@@ -523,8 +633,9 @@ def _work(job: tuple[int, int, int]) -> dict[str, Any]:
     return soak_shape(*job)
 
 
-def checkpoint_path(seed: int, steps: int, shapes: int) -> Path:
-    return RESULTS / f"soak_{seed}_{steps}_{shapes}.jsonl"
+def checkpoint_path(seed: int, steps: int, shapes: int, folder: Path = OUT) -> Path:
+    """The JSON-lines checkpoint of a soak, in ``folder``."""
+    return folder / f"soak_pop{POPULATION}_{seed}_{steps}_{shapes}.jsonl"
 
 
 def run_soak(
@@ -583,7 +694,7 @@ def summarise(records: list[dict]) -> dict[str, Any]:
     out["gap"] = max(r["gap"] for r in records)
     out["descent"] = min(r["descent"] for r in records)
     out["cpu_time"] = sum(r["time"] for r in records)
-    out["kinds"] = {k: sum(r.get("kind") == k for r in records) for k in KINDS}
+    out["kinds"] = {k: sum(r.get("kind") == k for r in records) for k in SCENE_KINDS}
     out["bad_shapes"] = [
         r["index"] for r in records if r["exceptions"] or r["sim_errors"] or r["violating_steps"]
     ]
@@ -669,7 +780,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="2,000 steps on 20 shapes")
     ap.add_argument("--only", type=int, default=None, help="run one shape index (serial)")
     ap.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
-    ap.add_argument("--out", type=Path, default=RESULTS / "soak.md")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=OUT / "soak.md",
+        help="report page; the checkpoint goes beside it (default: runs/benchmarks/soak.md)",
+    )
     args = ap.parse_args(argv)
     if args.quick:
         args.steps, args.shapes = 2000, 20
@@ -681,10 +797,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0 if not (rec["exceptions"] or rec["sim_errors"] or rec["violating_steps"]) else 1
     if args.steps < args.shapes or args.shapes < 1:
         ap.error("--steps must be >= --shapes >= 1")
-    ckpt = checkpoint_path(args.seed, args.steps, args.shapes)
+    ckpt = checkpoint_path(args.seed, args.steps, args.shapes, args.out.parent)
     if args.fresh and ckpt.exists():
         ckpt.unlink()
-    RESULTS.mkdir(parents=True, exist_ok=True)
+    ckpt.parent.mkdir(parents=True, exist_ok=True)
     print(f"soak: {args.steps} steps on {args.shapes} shapes, {args.workers} workers -> {ckpt}")
     records, wall = run_soak(args.steps, args.shapes, args.workers, args.seed, ckpt)
     s = summarise(records)

@@ -25,7 +25,7 @@ import numpy as np
 from gymnasium import spaces
 
 import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
-from benchmarks.common import RESULTS, headless, table, write
+from benchmarks.common import OUT, headless, table, write
 
 BASELINES = ("LunarLander-v3", "CartPole-v1")
 ACTION_BLOCK = 4096  #: random actions drawn per call to the generator
@@ -152,7 +152,7 @@ def make_runners() -> tuple[list[Runner], list[str]]:
 
 def run(
     quick: bool = False,
-    out: Path = RESULTS / "throughput.md",
+    out: Path = OUT / "throughput.md",
     budget: float | None = None,
     rounds: int | None = None,
 ) -> Path:
@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="2 rounds of 1 s per env")
     ap.add_argument("--budget", type=float, help="seconds per env per round")
     ap.add_argument("--rounds", type=int)
-    ap.add_argument("--out", type=Path, default=RESULTS / "throughput.md")
+    ap.add_argument("--out", type=Path, default=OUT / "throughput.md")
     args = ap.parse_args(argv)
     run(args.quick, args.out, args.budget, args.rounds)
     return 0

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 import grasp_env
-from benchmarks.common import RESULTS, BudgetExceeded, median_time, table, time_limit, write
+from benchmarks.common import OUT, BudgetExceeded, median_time, table, time_limit, write
 from grasp_env.envs.shapes import hand_setup
 
 DQ = 0.01  #: finger increment of the closing motion (rad per move)
@@ -160,7 +160,7 @@ def _target_line(rows: list[Row], solver: str, check: bool) -> str:
 
 def run(
     quick: bool = False,
-    out: Path = RESULTS / "work_precision.md",
+    out: Path = OUT / "work_precision.md",
     paths: int = 5,
     moves: int = 12,
     repeat: int = 3,
@@ -240,7 +240,7 @@ def run(
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a small grid (about 15 s)")
-    ap.add_argument("--out", type=Path, default=RESULTS / "work_precision.md")
+    ap.add_argument("--out", type=Path, default=OUT / "work_precision.md")
     args = ap.parse_args(argv)
     run(args.quick, args.out)
     return 0

@@ -4,10 +4,21 @@ No timing assertions: the numbers of a tiny run on a shared machine mean nothing
 """
 
 import json
+import platform
+from pathlib import Path
 
 import pytest
 
-from benchmarks import memory, planner_shapes, profile_step, throughput, work_precision
+from benchmarks import (
+    blas_variation,
+    memory,
+    planner_shapes,
+    profile_step,
+    step_times,
+    throughput,
+    work_precision,
+)
+from benchmarks.__main__ import main as run_suite
 
 
 @pytest.mark.parametrize(
@@ -45,3 +56,79 @@ def test_planner_shapes_page_holds_each_plan(tmp_path):
     assert text.startswith("# ") and "Machine:" in text
     row = next(line for line in text.splitlines() if line.startswith("| 3 |"))
     assert "crash" not in row and "timeout" not in row  # the worker process ran the plan
+
+
+def _forced_core_type() -> str | None:
+    """An OpenBLAS core type this CPU can run other than its own (None: not an x86-64 CPU with
+    AVX2 and FMA, or numpy without OpenBLAS)."""
+    from threadpoolctl import threadpool_info
+
+    if platform.machine() not in ("x86_64", "AMD64"):
+        return None
+    if not any(i.get("internal_api") == "openblas" for i in threadpool_info()):
+        return None
+    try:
+        flags = Path("/proc/cpuinfo").read_text().split()
+    except OSError:
+        return None
+    return "Haswell" if {"avx2", "fma"} <= set(flags) else None
+
+
+def test_blas_environ_sets_or_removes_both_variables():
+    base = {"PATH": "/bin", "OPENBLAS_CORETYPE": "Zen", "OPENBLAS_L2_SIZE": "1024"}
+    assert blas_variation.blas_environ("unset", base) == {"PATH": "/bin"}
+    env = blas_variation.blas_environ("Sandybridge", base)
+    assert env["OPENBLAS_CORETYPE"] == "Sandybridge"
+    assert env["OPENBLAS_L2_SIZE"] == blas_variation.L2_SIZE and env["PATH"] == "/bin"
+
+
+def test_blas_variation_report(tmp_path):
+    """One short episode a suite under ``unset`` and a forced core type: each worker process
+    really runs the kernel asked for, and every suite gets its comparison row."""
+    core = _forced_core_type()
+    if core is None:
+        pytest.skip("needs OpenBLAS on an x86-64 CPU with AVX2")
+    report = blas_variation.run(tmp_path, episodes=1, steps=5, core_types=[core], workers=2)
+    assert set(report["suites"]) == set(blas_variation.SUITES)
+    for name in blas_variation.SUITES:
+        forced = report["workers"][core][name]
+        assert forced.get("error") is None, forced
+        assert forced["environ"]["OPENBLAS_CORETYPE"] == core
+        assert forced["blas"] and {lib["architecture"] for lib in forced["blas"]} == {core}
+        unset = report["workers"]["unset"][name]
+        assert unset["environ"] == dict.fromkeys(blas_variation.BLAS_VARS)
+        assert forced["steps"] == unset["steps"] > 0
+        row = report["suites"][name][core]
+        assert row["episodes"] == 1
+        assert 0 <= row["discrete_different"] <= row["bit_different"] <= 1
+        assert row["discrete_different"] == len(row["discrete"])
+        assert row["max_pose_diff_all"] >= row["max_pose_diff_same"] >= 0.0
+    text = (tmp_path / "blas_variation.md").read_text()
+    assert text.startswith("# ") and "Machine:" in text and f"| default | {core} | 1 |" in text
+    assert json.loads((tmp_path / "blas_variation.json").read_text())["episodes"] == 1
+
+
+def test_step_times_report(tmp_path):
+    report = step_times.run(tmp_path, episodes=1, steps=5, workers=2)
+    for name in step_times.SUITES:
+        s = report["suites"][name]
+        assert 0 < s["steps"] <= 5
+        assert 0 < s["median"] <= s["p99"] <= s["p99.9"] <= s["max"]
+    assert report["all"]["steps"] == sum(s["steps"] for s in report["suites"].values())
+    slow = report["slowest"]
+    assert slow and slow[0]["time"] == report["all"]["max"]
+    assert {"suite", "seed", "step", "start", "kind", "events"} <= set(slow[0])
+    text = (tmp_path / "step_times.md").read_text()
+    assert text.startswith("# ") and "Machine:" in text and "| all |" in text
+    times = step_times.replay(slow[0]["suite"], slow[0]["seed"], slow[0]["step"], repeat=1)
+    assert len(times) == 2
+
+
+def test_suite_refuses_a_bad_out_before_running(tmp_path, capsys):
+    not_a_dir = tmp_path / "file"
+    not_a_dir.write_text("")
+    for out in (not_a_dir, not_a_dir / "sub"):
+        assert run_suite(["--only", "memory", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(out) in err
+    assert not (tmp_path / "memory.md").exists()

@@ -1,4 +1,4 @@
-"""Short versions of the soak (benchmarks/soak.py) and the memory check of issue 8.
+"""Short versions of the soak (benchmarks/soak.py) and the memory check.
 
 * ``test_soak_short``: 1,000 random-action env steps on 10 random stress shapes, every step
   checked by :func:`soak.check_state`; nothing may raise, fail or violate an invariant.
@@ -66,24 +66,49 @@ def test_soak_resumes(tmp_path: Path) -> None:
 
 
 def test_random_stress_scenes_cover_the_ranges() -> None:
-    """The soak's shapes span the issue's ranges: 3..12(+1) vertices, diameters 0.05..0.8,
-    every degenerate kind, masses over four orders of magnitude."""
+    """The soak's shapes span the stress ranges: 3..12 vertices, diameters 0.05..0.8, aspect to
+    1:30, every degenerate kind, densities over six orders of magnitude."""
     import grasp_env
 
     rng = np.random.default_rng(0)
-    kinds, sizes, masses, counts = set(), [], [], []
-    for _ in range(200):
+    kinds, sizes, densities, counts, thinness = set(), [], [], [], []
+    for _ in range(300):
         d = soak.random_stress_scene(rng)
         sc = grasp_env.load_scene(d)
         v = sc.object.vertices_B
         kinds.add(d["description"])
-        sizes.append(float(np.linalg.norm(v[:, None] - v[None], axis=-1).max()))
-        masses.append(sc.object.mass)
+        size = float(np.linalg.norm(v[:, None] - v[None], axis=-1).max())
+        sizes.append(size)
+        densities.append(d["object"]["density"])
         counts.append(len(v))
-    assert kinds == set(soak.KINDS)
-    assert min(sizes) < 0.1 and max(sizes) > 0.7 and max(sizes) <= 0.8 + 1e-9
-    assert min(masses) < 3e-3 and max(masses) > 3.0
-    assert min(counts) == 3 and max(counts) >= 12
+        thinness.append(float(np.ptp(v[:, 1])) / size)  # resting on its most stable edge
+    assert kinds == set(soak.SCENE_KINDS)
+    # "parallel" and "collinear" move a vertex by up to 1e-2 of the diameter
+    assert min(sizes) < 0.1 and max(sizes) > 0.7 and max(sizes) <= 0.8 * (1 + 1e-2)
+    assert min(densities) < 3e-3 and max(densities) > 300
+    assert min(counts) == 3 and max(counts) == 12
+    assert min(thinness) < 1 / 20
+
+
+@pytest.mark.parametrize("rest", ["left", "right", "neighbours"])
+def test_bulge_on_the_resting_edge(rest: str) -> None:
+    """A bulge polygon has a vertex inside its resting edge, 1e-12..1e-9 outside the line
+    through its neighbours: resting on it and one neighbour (the other just above the
+    support), or on both neighbours (the vertex that far below the support)."""
+    import grasp_env
+
+    for seed in range(20):
+        v = soak.bulge_polygon(np.random.default_rng(seed), 6, 0.4, 3.0, rest)
+        a, m, b = (v[-1], v[0], v[1]) if rest == "right" else (v[0], v[1], v[2])
+        d = b - a
+        offset = float(d[0] * (a[1] - m[1]) - d[1] * (a[0] - m[0])) / float(np.hypot(*d))
+        assert 0.99e-12 <= offset <= 1.01e-9  # outward: the polygon stays convex
+        assert a[0] < m[0] < b[0]
+        if rest == "neighbours":
+            assert a[1] == b[1] == 0.0 and -1e-9 <= m[1] < 0.0
+        else:
+            assert v[0, 1] == v[1, 1] == 0.0 and v[2:, 1].min() > 0.0
+        grasp_env.load_scene(soak.stress_scene(v, density=1.0))  # a valid scene
 
 
 def rss_mb() -> float:
