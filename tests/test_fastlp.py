@@ -469,6 +469,47 @@ def test_planted_optimum_nearly_rank2(seed: int, n: int) -> None:
     assert np.linalg.norm(V.T @ res.lam - c) <= 1e-6 * (row @ res.lam + np.linalg.norm(c))
 
 
+def test_undecided_raises_solver_error() -> None:
+    """Rows in pairs 1e-8 apart and xi 1e-9 off a planted optimum: no basis is certified to
+    the tolerances, nor a Farkas vector or descent ray, so the solver reports
+    ``"fastlp_undecided"`` (the caller falls back to HiGHS, which finds the optimum)."""
+    rng = np.random.default_rng(789)
+    n = int(rng.integers(2, 6))
+    V = structured_rows(rng, "nearly-rank2", 2 * n)
+    xi, c, _, _ = planted_problem(rng, V)
+    xi = xi + 1e-9 * rng.normal(size=len(xi))
+    with pytest.raises(SolverError) as err:
+        solve_velocity_lp(V, xi, c)
+    assert err.value.status == "fastlp_undecided"
+    assert reference(V, xi, c).status == "optimal"
+
+
+def test_input_arrays() -> None:
+    """Lists, strided, Fortran-ordered, integer and read-only inputs give the same bits as
+    contiguous float arrays; xi must have one entry per row of V."""
+    rng = np.random.default_rng(5)
+    V, xi, c = polygon_problem(rng, 6)
+    base = solve_velocity_lp(V, xi, c)
+    frozen = [a.copy() for a in (V, xi, c)]
+    for a in frozen:
+        a.setflags(write=False)
+    variants = [
+        (V.tolist(), xi.tolist(), tuple(c)),
+        (np.asfortranarray(V), np.repeat(xi, 2)[::2], c[None, :]),
+        frozen,
+    ]
+    for args in variants:
+        res = solve_velocity_lp(*args)
+        assert res.status == base.status
+        for field in ("v", "lam", "certificate"):
+            a, b = getattr(base, field), getattr(res, field)
+            assert (a is None and b is None) or np.array_equal(a, b)
+    closure = np.vstack([E, -E]).astype(int)
+    assert form_closure_fast(closure) is True and form_closure_fast(closure.tolist()) is True
+    with pytest.raises(ValueError, match="xi has 5 entries for 6 rows"):
+        solve_velocity_lp(V, xi[:5], c)
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     seed=seeds,
