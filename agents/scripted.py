@@ -1,6 +1,6 @@
 """The paper's scripted planner: a command that plans and draws a grasp, and a policy for the env.
 
-Command (issue 4)::
+Command::
 
     python -m agents.scripted --scene fig13 --out DIR
 
@@ -13,7 +13,7 @@ It prints a summary and exits with status 0 on form closure, 1 if the plan fails
 object cannot be lifted without friction), 2 on bad arguments. The images need the ``viz``
 extra (matplotlib, imageio).
 
-Policy (issue 5)::
+Policy::
 
     policy = ScriptedPolicy(env)
     obs, info = env.reset()
@@ -336,6 +336,9 @@ class ScriptedPolicy:
     motion (:mod:`grasp_env.regrasp`) from the env's state on the env's own step function
     (``simulate_action``), so the env follows it exactly.
 
+    It reads the env only through its public accessors (``env.unwrapped.state``,
+    ``.simulator``, ``.scene``, ``.simulate_action`` and the action settings).
+
     Args:
         env: a ``FrictionlessGraspEnv``, possibly wrapped.
         dq: finger increment of the lifting phase (rad).
@@ -345,6 +348,8 @@ class ScriptedPolicy:
         self.env = env
         self.dq = dq
         self.plan: planner.Plan | None = None
+        self._ready = False  # reset() has planned
+        self._transit_left = -1  # waypoints left before the planned placement (-1: none)
         # (hand, object pose, hand increment or None: the difference of the hands)
         self._waypoints: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
         self._chunk: list[np.ndarray] = []  # actions left to reach the current waypoint
@@ -353,15 +358,22 @@ class ScriptedPolicy:
         self._explored = False
 
     def reset(self, obs=None, info=None) -> None:
-        """Plan from the env's current state (call after every ``env.reset``)."""
+        """Plan from the env's current state (call after every ``env.reset``).
+
+        Raises:
+            RuntimeError: the env has not been reset yet.
+        """
+        if self.env.unwrapped.state is None:
+            raise RuntimeError("reset the env (env.reset()) before ScriptedPolicy.reset()")
         self._replans = 0
         self._explored = False
-        self._transit_left = -1  # waypoints left before the planned placement (-1: none)
+        self._transit_left = -1
         self._replan()
+        self._ready = True
 
     def _replan(self, palm_moves: bool = True) -> None:
         base = self.env.unwrapped
-        sim, state = base._sim, base._state
+        sim, state = base.simulator, base.state
         plan = self._fixed_palm_plan(sim, state)
         self._use(plan, [])
         if not plan.success and palm_moves and base.palm_control:
@@ -372,7 +384,7 @@ class ScriptedPolicy:
         """Close until both fingers touch, lift and adjust the grip, the palm where it is."""
         plan = planner.Plan()
         plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
-        if not planner._both_touch(state):
+        if not planner.both_fingers_touch(state):
             state = planner.close_until_touch(sim, state)
             plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "closing"))
         state = planner.lift(sim, state, plan, self.dq)
@@ -389,7 +401,7 @@ class ScriptedPolicy:
         """Follow ``transit`` (hand configurations, the object at rest), then ``plan``; its
         first steps by ``increments`` if given (the hand increments they were planned with)."""
         self.plan = plan
-        rest = self.env.unwrapped._state.object_pose.copy()
+        rest = self.env.unwrapped.state.object_pose.copy()
         self._waypoints = [(h, rest, None) for h in transit]
         incs = list(increments or [])
         for k, st in enumerate(plan.steps[1:]):
@@ -444,7 +456,7 @@ class ScriptedPolicy:
         # finger action at a time, each finger stopping once it touches).
         states, increments = [state], []
         for _ in range(CLOSE_STEPS):
-            touching = planner._touching_bodies(states[-1])
+            touching = planner.touching_bodies(states[-1])
             dh = np.zeros(5)
             dh[3:] = base.max_finger_step * np.array(
                 [f"finger{i}" not in touching for i in (1, 2)], float
@@ -458,11 +470,11 @@ class ScriptedPolicy:
         plan = planner.Plan()
         plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
         end, increments = planner.explore(
-            base._sim, plan, (states, increments), EXPLORE_MOVES, move
+            base.simulator, plan, (states, increments), EXPLORE_MOVES, move
         )
         if not plan.success:
             return
-        planner.adjust_grip(base._sim, end, plan)
+        planner.adjust_grip(base.simulator, end, plan)
         self._use(plan, [], increments)
 
     def _full_plan(self, sim: Simulator) -> planner.Plan:
@@ -478,19 +490,28 @@ class ScriptedPolicy:
         return _PLAN_CACHE[key]
 
     def act(self, obs=None) -> np.ndarray:
-        """The next action, float32 in [-1, 1], of the env's action shape."""
+        """The next action, float32 in [-1, 1], of the env's action shape.
+
+        Raises:
+            RuntimeError: :meth:`reset` has not been called (it plans the episode).
+        """
+        if not self._ready:
+            raise RuntimeError(
+                "call ScriptedPolicy.reset() after env.reset() and before act(): "
+                "reset() plans the episode from the env's state"
+            )
         base = self.env.unwrapped
         if not self._chunk:
-            state = base._state
+            state = base.state
             if self._expected is not None:
                 off = np.abs(state.object_pose - self._expected).max()
                 self._expected = None
-                if off > REPLAN_TOL * base._sim.size and self._replans < MAX_REPLANS:
+                if off > REPLAN_TOL * base.simulator.size and self._replans < MAX_REPLANS:
                     self._replans += 1
                     self._replan()
             if self._transit_left == 0 and self.plan is not None and self._waypoints:
                 self._transit_left = -1  # at the placement: lift from the env's own state
-                plan = self._fixed_palm_plan(base._sim, state)
+                plan = self._fixed_palm_plan(base.simulator, state)
                 if plan.success:
                     self._use(plan, [])
             if self._waypoints:
@@ -504,7 +525,7 @@ class ScriptedPolicy:
     def _actions(self, dh: np.ndarray) -> list[np.ndarray]:
         """Equal actions that together move the hand by ``dh`` (shape (5,))."""
         base = self.env.unwrapped
-        w = base._state.scene.palm.width
+        w = base.scene.palm.width
         a = np.zeros(5)
         a[0] = dh[3] / base.max_finger_step
         a[1] = -dh[4] / base.max_finger_step

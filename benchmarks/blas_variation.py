@@ -79,7 +79,7 @@ def step_record(env: Any, info: dict, terminated: bool, truncated: bool) -> list
 
     from benchmarks.episodes import contact_keys
 
-    state = env.unwrapped._state
+    state = env.unwrapped.state
     parts = [state.object_pose, state.hand]
     for c in state.contacts:
         parts += [c.point, c.normal, [c.force]]

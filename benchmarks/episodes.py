@@ -77,5 +77,5 @@ def random_action(rng: np.random.Generator) -> np.ndarray:
 
 def contact_keys(env: gym.Env) -> list[list[Any]]:
     """The current contacts as sorted ``[body, kind, object_feature, hand_feature]``."""
-    state = env.unwrapped._state
+    state = env.unwrapped.state
     return sorted([c.body, c.kind, c.object_feature, c.hand_feature] for c in state.contacts)

@@ -608,7 +608,7 @@ def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
             rec["sim_errors"] += 1
             if len(rec["examples"]) < 3:
                 rec["examples"].append(f"step {rec['steps']}: sim_error {info['sim_error']}")
-        state = env._state
+        state = env.state
         chk = check_state(
             state.scene, info["object_pose"], np.r_[info["palm_pose"], info["finger_angles"]],
             info["contacts"], tol,

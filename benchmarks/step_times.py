@@ -220,13 +220,13 @@ def replay(suite: str, seed: int, step: int, repeat: int = 5) -> list[float]:
         if terminated or truncated:
             raise SystemExit(f"{suite} seed {seed} ends before step {step}")
     action = random_action(rng)
-    state = env.unwrapped._state
+    state = env.unwrapped.state
     t0 = time.perf_counter()
     _, _, _, _, info = env.step(action)
     times = [time.perf_counter() - t0]
     for _ in range(repeat):
         t0 = time.perf_counter()
-        env.unwrapped.simulate_action(state, np.clip(action, -1.0, 1.0).astype(float))
+        env.unwrapped.simulate_action(state, action)
         times.append(time.perf_counter() - t0)
     print(
         f"{suite} seed {seed} ({kind}) step {step}: env.step {_ms(times[0])} ms, events "

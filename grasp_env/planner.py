@@ -134,7 +134,8 @@ class Plan:
         return None
 
 
-def _touching_bodies(state: State) -> set[str]:
+def touching_bodies(state: State) -> set[str]:
+    """Names of the bodies touching the object (``"support"``, ``"palm"``, ``"finger1"``...)."""
     return {c.body for c in state.contacts}
 
 
@@ -275,8 +276,9 @@ def centred_placement(sim: Simulator, step: float = PRELIFTOFF_STEP) -> State:
     return close_until_touch(sim, state, step)
 
 
-def _both_touch(state: State) -> bool:
-    return {"finger1", "finger2"} <= _touching_bodies(state)
+def both_fingers_touch(state: State) -> bool:
+    """Whether both fingers touch the object."""
+    return {"finger1", "finger2"} <= touching_bodies(state)
 
 
 def close_until_touch(sim: Simulator, state: State, step: float = PRELIFTOFF_STEP) -> State:
@@ -289,7 +291,7 @@ def close_until_touch(sim: Simulator, state: State, step: float = PRELIFTOFF_STE
     lim = sim.scene.joint_limits
     closing = np.array([1.0, -1.0])  # finger 1 closes as q1 grows, finger 2 as q2 falls
     for _ in range(int(4 * math.pi / step) + 4):
-        done = [f"finger{i + 1}" in _touching_bodies(state) for i in range(2)]
+        done = [f"finger{i + 1}" in touching_bodies(state) for i in range(2)]
         if all(done) or state.jammed or state.hand_blocked:
             break
         q = state.finger_angles

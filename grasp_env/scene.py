@@ -1,8 +1,9 @@
 """Scene description: the hand, the object and gravity, loaded once from YAML and validated.
 
 The schema is DESIGN.md section 3. :func:`load_scene` accepts a bundled scene name (a file in
-``configs/scenes/``), a path to a YAML file, or a dict in the same schema. Every bad input
-raises :class:`~grasp_env.errors.SceneError` naming the field and the value.
+the package's ``grasp_env/scenes/``, installed as package data), a path to a YAML file, or a
+dict in the same schema. Every bad input raises :class:`~grasp_env.errors.SceneError`
+naming the field and the value.
 
 Accepted ranges (docs/reliability.md, "Scene ranges"). The simulator and the analysis work in
 units of the palm width ``w`` (lengths, the contact tolerance) and the object's weight ``W``
@@ -24,11 +25,12 @@ relative to ``w`` and ``W`` by what double precision resolves against the contac
 
 from __future__ import annotations
 
+import importlib.resources
 import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
@@ -36,10 +38,25 @@ import yaml
 from grasp_env import geometry as geo
 from grasp_env.errors import SceneError
 
-#: Folder of the bundled scenes (``GRASP_ENV_SCENES`` overrides it).
-SCENES_DIR = Path(
-    os.environ.get("GRASP_ENV_SCENES", Path(__file__).resolve().parents[1] / "configs" / "scenes")
-)
+if TYPE_CHECKING:
+    from importlib.resources.abc import Traversable
+
+
+def _scenes_dir() -> Traversable:
+    override = os.environ.get("GRASP_ENV_SCENES")
+    if override:
+        return Path(override)
+    return importlib.resources.files("grasp_env").joinpath("scenes")
+
+
+#: Folder of the bundled scenes: ``grasp_env/scenes/`` inside the installed package (package
+#: data, read through :mod:`importlib.resources`; a :class:`pathlib.Path` unless the package is
+#: imported from a zip file). The environment variable ``GRASP_ENV_SCENES``, read at import,
+#: replaces it by another folder.
+SCENES_DIR = _scenes_dir()
+
+#: File suffixes that make a string a path rather than a bundled name (see :func:`load_scene`).
+SCENE_SUFFIXES = (".yaml", ".yml")
 
 #: Gap below which two bodies count as touching when a scene is checked, as a fraction of the
 #: palm width (the simulator's default ``contact_tol``).
@@ -410,16 +427,46 @@ def scene_from_dict(d: Any, source: str | None = None) -> Scene:
 
 
 def bundled_scenes() -> list[str]:
-    """Names of the scenes shipped in ``configs/scenes/``."""
-    return sorted(p.stem for p in SCENES_DIR.glob("*.yaml"))
+    """Names of the bundled scenes (the ``*.yaml`` files of :data:`SCENES_DIR`), sorted."""
+    if not SCENES_DIR.is_dir():
+        return []
+    return sorted(
+        p.name[: -len(".yaml")]
+        for p in SCENES_DIR.iterdir()
+        if p.name.endswith(".yaml") and p.is_file()
+    )
+
+
+def _is_path(spec: str | os.PathLike) -> bool:
+    """Whether ``spec`` names a file (see :func:`load_scene`), not a bundled scene."""
+    if not isinstance(spec, str):
+        return True  # os.PathLike
+    separators = {"/", os.sep, os.altsep} - {None}
+    return any(sep in spec for sep in separators) or spec.lower().endswith(SCENE_SUFFIXES)
 
 
 def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
     """Load a scene from a bundled name, a YAML path, a dict, or pass a :class:`Scene` through.
 
+    A string is a **path** when it contains a path separator (``"./fig13"``,
+    ``"scenes/my.yaml"``) or ends in ``.yaml`` or ``.yml`` (``"my_scene.yaml"``, read from the
+    working directory), and so is any :class:`os.PathLike` (``pathlib.Path("fig13")``). Any
+    other string is a **bundled name** (:func:`bundled_scenes`): ``load_scene("fig13")`` is
+    always the bundled scene, whatever files or folders the working directory holds; an
+    unknown name raises :class:`SceneError` listing the bundled names. A path is never
+    looked up among the bundled scenes.
+
+    Args:
+        spec: a bundled name, a path to a YAML file in the schema of DESIGN.md section 3,
+            a dict in that schema, or a :class:`Scene` (returned as it is).
+
+    Returns:
+        The validated scene; ``source`` holds the file it was read from (None for a dict).
+
     Raises:
-        SceneError: the file is missing or unreadable, or a field is invalid (the message
-            names the field and the value).
+        SceneError: an unknown bundled name, a file that is missing or unreadable, or an
+            invalid field (the message names the field and the value). ``SceneError`` is a
+            ``ValueError``.
     """
     if isinstance(spec, Scene):
         return spec
@@ -427,19 +474,21 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
         return scene_from_dict(spec)
     if not isinstance(spec, str | os.PathLike):
         raise SceneError(f"scene must be a bundled name, a path or a dict, got {spec!r}")
-    path = Path(spec)
-    if not path.exists() and (SCENES_DIR / path.name).exists() and path.parent == Path("."):
-        path = SCENES_DIR / path.name
-    if not path.suffix and not path.exists():
-        path = SCENES_DIR / f"{spec}.yaml"
-        if not path.exists():
+    if _is_path(spec):
+        path: Traversable = Path(spec)
+    else:
+        names = bundled_scenes()
+        if spec not in names:
             raise SceneError(
-                f"scene {str(spec)!r} is not a bundled scene; bundled: {bundled_scenes()}"
+                f"scene {spec!r} is not a bundled scene; bundled: {names} (a file is read "
+                f"only from a path with a separator or a .yaml/.yml suffix, e.g. './{spec}')"
             )
+        path = SCENES_DIR.joinpath(f"{spec}.yaml")
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise SceneError(f"scene file {str(path)!r} cannot be read: {exc.strerror}") from None
+        reason = exc.strerror or str(exc)
+        raise SceneError(f"scene file {str(path)!r} cannot be read: {reason}") from None
     except UnicodeDecodeError as exc:
         raise SceneError(f"scene file {str(path)!r} is not UTF-8 text: {exc.reason}") from None
     try:

@@ -375,6 +375,6 @@ def test_nearly_straight_resting_edge_through_the_env() -> None:
     env.reset(seed=0)
     for k in range(1, 4):
         env.step(np.array([1, 1, 0, 0, 0], np.float32))
-        state = env.unwrapped._state
+        state = env.unwrapped.state
         assert state.events == ()
         assert state.finger_angles[0] == pytest.approx(-HALF_PI + k * 0.05)

@@ -7,6 +7,7 @@ import os
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
+import inspect
 import math
 import pickle
 import warnings
@@ -17,7 +18,8 @@ import pytest
 
 import grasp_env
 from grasp_env import geometry as geo
-from grasp_env.envs import ENV_ID, WRAPPER_ENTRY_POINT
+from grasp_env.envs import ENV_ID, REWARD_THRESHOLD, WRAPPER_ENTRY_POINT
+from grasp_env.envs import frictionless_grasp as fg_module
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv, _observation_bounds
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_convex_polygon
 from grasp_env.planner import close_until_touch
@@ -124,6 +126,100 @@ def test_spaces(palm_control):
     assert np.all(space.low < space.high)
 
 
+def test_reward_threshold_is_the_form_closure_bonus():
+    assert gym.spec(ENV_ID).reward_threshold == REWARD_THRESHOLD == 10.0
+    assert gym.make(ENV_ID).spec.reward_threshold == REWARD_THRESHOLD
+    default = inspect.signature(FrictionlessGraspEnv).parameters["reward_form_closure_weight"]
+    assert default.default == REWARD_THRESHOLD
+    assert "reward_threshold" in FrictionlessGraspEnv.__doc__
+
+
+def _episode_return(env, actions, steps: int) -> tuple[float, dict]:
+    total, info = 0.0, {}
+    for k in range(steps):
+        _, reward, terminated, truncated, info = env.step(actions(k, info))
+        total += reward
+        if terminated or truncated:
+            break
+    return total, info
+
+
+def test_reward_threshold_separates_grasps_from_failures():
+    env = gym.make(ENV_ID, start="preliftoff")
+    # A grasp, held: squeeze until form closure off the support, then hold still.
+    env.reset(seed=0)
+    held = {"done": False}
+
+    def squeeze_then_hold(k, info):
+        held["done"] |= bool(info.get("is_success"))
+        return np.zeros(2) if held["done"] else np.ones(2)
+
+    total, info = _episode_return(env, squeeze_then_hold, 20)
+    assert info["is_success"] and total >= REWARD_THRESHOLD
+    # A grasp lost at once: the drop penalty cancels the bonus.
+    env.reset(seed=0)
+    total, info = _episode_return(env, lambda k, info: np.ones(2) if k < 8 else -np.ones(2), 60)
+    assert info["dropped"] and total < REWARD_THRESHOLD
+    # Random actions over a whole episode (200 steps).
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    total, info = _episode_return(env, lambda k, info: env.action_space.sample(), 10_000)
+    assert not info["is_success"] and total < REWARD_THRESHOLD
+
+
+# ---------------------------------------------------------------------- public accessors
+def test_accessors_before_reset_are_none():
+    env = FrictionlessGraspEnv()
+    assert env.state is None and env.simulator is None and env.scene is None
+    with pytest.raises(RuntimeError, match=r"call reset\(\) before simulate_action"):
+        env.simulate_action(None, np.zeros(2))
+
+
+@pytest.mark.parametrize("palm_control", PALM_CONTROL, ids=PALM_IDS)
+def test_accessors_give_the_episode_state_simulator_and_scene(palm_control):
+    env = gym.make(ENV_ID, scene=["fig13", "square"], palm_control=palm_control)
+    base = env.unwrapped
+    _, info = env.reset(seed=0, options={"scene": "hexagon"})
+    assert isinstance(base.state, grasp_env.State)
+    assert isinstance(base.simulator, grasp_env.Simulator)
+    assert isinstance(base.scene, grasp_env.Scene)
+    assert base.scene.name == "hexagon"
+    assert base.state.scene is base.scene and base.simulator.scene is base.scene
+    np.testing.assert_array_equal(base.state.object_pose, info["object_pose"])
+    before = base.state
+    _, _, _, _, info = env.step(np.ones(env.action_space.shape))
+    assert base.state is not before  # a new immutable state every step
+    np.testing.assert_array_equal(base.state.finger_angles, info["finger_angles"])
+    for name in ("state", "simulator", "scene"):
+        with pytest.raises(AttributeError):
+            setattr(base, name, None)
+    assert env.get_wrapper_attr("state") is base.state
+
+
+def test_simulate_action_checks_and_clips_like_step():
+    env = FrictionlessGraspEnv(start="preliftoff")
+    env.reset(seed=0)
+    state = env.state
+    clipped = env.simulate_action(state, [1.0, 1.0])
+    np.testing.assert_array_equal(env.simulate_action(state, [7.0, 3.0]).hand, clipped.hand)
+    assert env.state is state
+    with pytest.raises(ValueError, match="action"):
+        env.simulate_action(state, [math.nan, 0.0])
+    with pytest.raises(ValueError, match="action"):
+        env.simulate_action(state, np.zeros(5))
+    with pytest.raises(TypeError, match=r"state must be a grasp_env\.State"):
+        env.simulate_action(state.hand, np.zeros(2))
+
+
+def test_accessors_are_documented():
+    doc = FrictionlessGraspEnv.__doc__
+    for name in ("state", "simulator", "scene"):
+        assert f":attr:`{name}`" in doc and getattr(FrictionlessGraspEnv, name).__doc__
+    assert "simulate_action(state, action)" in doc
+    assert "Raises:" in FrictionlessGraspEnv.simulate_action.__doc__
+
+
 # ---------------------------------------------------------------------- determinism, pickling
 def test_seeded_rollout_is_reproducible():
     runs = [_rollout(FrictionlessGraspEnv(), seed=3, steps=200) for _ in range(2)]
@@ -142,12 +238,12 @@ def test_simulate_action_is_what_step_does(palm_control):
     rng = np.random.default_rng(2)
     for _ in range(20):
         action = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
-        before = env._state
-        predicted = env.simulate_action(before, np.clip(np.asarray(action, float), -1, 1))
-        assert env._state is before
+        before = env.state
+        predicted = env.simulate_action(before, action)
+        assert env.state is before
         env.step(action)
-        np.testing.assert_array_equal(predicted.hand, env._state.hand)
-        np.testing.assert_array_equal(predicted.object_pose, env._state.object_pose)
+        np.testing.assert_array_equal(predicted.hand, env.state.hand)
+        np.testing.assert_array_equal(predicted.object_pose, env.state.object_pose)
 
 
 def test_pickle_round_trip_mid_episode():
@@ -222,14 +318,34 @@ def test_info_keys_on_reset_and_step():
         assert all(
             {"body", "kind", "point", "normal", "force"} <= c.keys() for c in info["contacts"]
         )
-        assert math.isnan(info["grip_force"]) != info["form_closure"]
+        assert type(info["grip_force"]) is float
+        assert math.isfinite(info["grip_force"]) == info["form_closure"]
+
+
+def test_grip_force_is_a_plain_float_inf_outside_form_closure():
+    env = FrictionlessGraspEnv(start="preliftoff")
+    _, info = env.reset(seed=0)
+    assert type(info["grip_force"]) is float and info["grip_force"] == math.inf
+    assert info["grip_force"] == info["grip_force"]  # compares equal to itself (check_env)
+    _, _, _, _, info = _close_until(env, lambda i: i["form_closure"])
+    assert type(info["grip_force"]) is float and math.isfinite(info["grip_force"])
+    assert not hasattr(fg_module, "_NaN") and not hasattr(fg_module, "NAN")
+    assert "``inf``" in FrictionlessGraspEnv.__doc__.split("grip_force")[1][:120]
+
+
+def test_grip_force_vectorizes_as_floats():
+    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync")
+    _, info = envs.reset(seed=0)
+    assert info["grip_force"].dtype == np.float64
+    assert np.all(info["grip_force"] == math.inf)
+    envs.close()
 
 
 def test_reset_options_start_from_given_configuration():
     env = FrictionlessGraspEnv()
     palm, fingers = (0.05, 0.8, 0.1), (-1.4, -1.8)
     _, info = env.reset(seed=0, options={"scene": "square", "palm": palm, "fingers": fingers})
-    assert env.unwrapped._state.scene.name == "square"
+    assert env.scene.name == "square"
     assert np.allclose(info["palm_pose"], palm) and np.allclose(info["finger_angles"], fingers)
     # Missing parts come from the scene.
     _, info = env.reset(options={"fingers": fingers})
@@ -268,7 +384,7 @@ def test_random_start_is_clear_and_seeded():
     assert np.array_equal(starts[0], starts[2]) and not np.array_equal(starts[0], starts[1])
     for _ in range(3):
         env.reset()
-        state = env.unwrapped._state
+        state = env.state
         obj = geo.transform(state.object_pose, state.scene.object.vertices_B)
         for poly in grasp_env.kinematics.hand_polygons_W(state.scene, state.hand):
             assert geo.penetration_depth(poly, obj) <= 1e-9
@@ -388,7 +504,7 @@ def test_randomized_scenes_fit_the_hand_and_vary():
     masses, counts = set(), set()
     for seed in range(6):
         env.reset(seed=seed)
-        scene = env.unwrapped._state.scene
+        scene = env.scene
         masses.add(scene.object.mass)
         counts.add(len(scene.object.vertices_B))
         assert 0.1 <= scene.object.mass <= 0.2 and 3 <= len(scene.object.vertices_B) <= 6
@@ -424,7 +540,7 @@ def test_observations_stay_in_space_and_rewards_add_up(scene, kwargs):
 def test_observation_layout():
     env = FrictionlessGraspEnv(scene="square")
     obs, _ = env.reset(seed=0)
-    scene = env.unwrapped._state.scene
+    scene = env.scene
     n = 12
     assert obs[0] == pytest.approx(scene.palm.pose[0] - scene.object.start_pose[0])
     assert obs[1] == pytest.approx(scene.palm.pose[1])
@@ -484,7 +600,7 @@ def test_simulation_error_terminates_with_state_unchanged(monkeypatch):
     def fail(*args, **kwargs):
         raise grasp_env.SimulationError("fall did not come to rest")
 
-    monkeypatch.setattr(env.unwrapped._sim, "move_hand", fail)
+    monkeypatch.setattr(env.simulator, "move_hand", fail)
     obs2, reward, terminated, truncated, info2 = env.step(np.ones(2))
     assert terminated and not truncated and "fall did not come to rest" in info2["sim_error"]
     assert np.array_equal(obs, obs2) and np.array_equal(info["object_pose"], info2["object_pose"])
@@ -495,5 +611,5 @@ def test_always_compute_grip_reports_y_star_outside_closure():
     env = FrictionlessGraspEnv(always_compute_grip=True)
     _, info = env.reset(seed=0)
     weight = grasp_env.load_scene("fig13").object_weight
-    assert not info["form_closure"] and math.isnan(info["grip_force"])
+    assert not info["form_closure"] and info["grip_force"] == math.inf
     assert info["grip_objective"] == pytest.approx(weight)  # resting on the support: y* = W

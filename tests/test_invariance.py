@@ -40,7 +40,7 @@ from grasp_env.errors import SceneError
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import soak
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
 #: Pose agreement, as a fraction of the palm width (events are located to 1e-9 of it).
 POSE_RTOL = 1e-7
 FORCE_RTOL = 1e-6

@@ -11,6 +11,7 @@ import pickle
 import subprocess
 import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -173,3 +174,35 @@ def test_env_human_mode_headless():
         assert env.render() is None
         env.step(np.zeros(2, dtype=np.float32))
     env.close()
+
+
+def test_record_video_writes_an_mp4_headless(tmp_path):
+    """gymnasium's RecordVideo (MoviePy, in the viz extra) records an episode headless."""
+    pytest.importorskip("moviepy", reason="the viz extra installs moviepy")
+    import gymnasium as gym
+    from gymnasium.wrappers import RecordVideo
+
+    folder = tmp_path / "videos"
+    env = gym.make(
+        "FrictionlessGrasp-v0",
+        render_mode="rgb_array",
+        render_width=160,
+        render_height=120,
+        max_episode_steps=12,
+    )
+    env = RecordVideo(env, video_folder=str(folder), name_prefix="fig13")
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    truncated = terminated = False
+    while not (terminated or truncated):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+    env.close()
+    (video,) = folder.glob("*.mp4")
+    assert video.name == "fig13-episode-0.mp4"
+    assert video.stat().st_size > 1000 and b"ftyp" in video.read_bytes()[:16]
+
+
+def test_viz_extra_installs_moviepy():
+    text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
+    (viz,) = [line for line in text.splitlines() if line.startswith("viz = ")]
+    assert '"moviepy' in viz

@@ -10,6 +10,7 @@ closed forms for rectangles and triangles.
 from __future__ import annotations
 
 import copy
+import importlib.resources
 import math
 import re
 from collections.abc import Callable
@@ -24,7 +25,7 @@ from grasp_env import scene as scene_mod
 from grasp_env.errors import SceneError
 from grasp_env.scene import Scene, bundled_scenes, load_scene, scene_from_dict
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
 SCENE_FILES = sorted(p.stem for p in SCENES_DIR.glob("*.yaml"))
 REQUIRED_SCENES = (
     "fig13",
@@ -869,7 +870,81 @@ def test_infinite_torque_limits_are_accepted() -> None:
 def test_unknown_bundled_name_is_refused() -> None:
     with pytest.raises(SceneError, match=r"scene 'fig14' is not a bundled scene") as info:
         load_scene("fig14")
-    assert "fig13" in str(info.value), "the message lists the bundled scenes"
+    assert all(name in str(info.value) for name in SCENE_FILES), "it lists the bundled scenes"
+    assert isinstance(info.value, ValueError)
+
+
+# A string without a path separator or a .yaml/.yml suffix is a bundled name, whatever the
+# working directory holds; a separator, a suffix or an os.PathLike makes it a file.
+
+
+def test_bundled_name_ignores_a_directory_of_that_name(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "fig13").mkdir()  # e.g. left by `python -m agents.scripted --out fig13`
+    scene = load_scene("fig13")
+    assert scene.name == "fig13"
+    assert Path(scene.source).resolve() == (SCENES_DIR / "fig13.yaml").resolve()
+    with pytest.raises(SceneError, match=r"scene file 'fig13' cannot be read"):
+        load_scene(Path("fig13"))  # a Path is a path: here a directory
+
+
+def test_bundled_name_ignores_a_file_of_that_name(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "fig13").write_text((SCENES_DIR / "square.yaml").read_text())
+    assert load_scene("fig13").name == "fig13"
+    assert load_scene(Path("fig13")).name == "square"
+    assert load_scene("./fig13").name == "square"
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [Path("fig13.yaml"), "fig13.yaml", "fig13.yml", "./fig13.yaml", "FIG13.YAML"],
+    ids=["Path", "yaml-suffix", "yml-suffix", "dot-slash", "upper-case-suffix"],
+)
+def test_path_spec_reads_the_working_directory(tmp_path, monkeypatch, spec) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / str(spec)).write_text((SCENES_DIR / "square.yaml").read_text())
+    scene = load_scene(spec)
+    assert scene.name == "square"
+    assert Path(scene.source).resolve() == (tmp_path / str(spec)).resolve()
+
+
+@pytest.mark.parametrize("spec", [Path("fig13"), "fig13.yaml", "./fig13", "./x.yaml"], ids=str)
+def test_missing_path_is_not_looked_up_among_bundled_scenes(tmp_path, monkeypatch, spec) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SceneError, match=r"scene file .* cannot be read"):
+        load_scene(spec)
+
+
+def test_relative_path_with_separator(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "x.yaml").write_text((SCENES_DIR / "triangle.yaml").read_text())
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "fig13").write_text((SCENES_DIR / "hexagon.yaml").read_text())
+    assert load_scene("./x.yaml").name == "triangle"
+    assert load_scene("sub/fig13").name == "hexagon"
+
+
+def test_load_scene_documents_the_name_rule() -> None:
+    doc = load_scene.__doc__
+    assert "separator" in doc and ".yaml" in doc and "PathLike" in doc
+
+
+def test_bundled_scenes_are_package_data() -> None:
+    """The scenes live inside the package (found through importlib.resources), so an
+    installed wheel has them too; pyproject.toml declares them as package data."""
+    folder = importlib.resources.files("grasp_env").joinpath("scenes")
+    assert sorted(p.name for p in folder.iterdir() if p.name.endswith(".yaml")) == [
+        f"{name}.yaml" for name in SCENE_FILES
+    ]
+    root = Path(__file__).resolve().parents[1]
+    package_data = re.search(
+        r"^\[tool\.setuptools\.package-data\]\n(?:#.*\n)*grasp_env = \[(.*)\]$",
+        (root / "pyproject.toml").read_text(),
+        re.MULTILINE,
+    )
+    assert package_data and '"scenes/*.yaml"' in package_data.group(1)
+    assert not (root / "configs" / "scenes").exists()
 
 
 def test_missing_path_is_refused(tmp_path: Path) -> None:

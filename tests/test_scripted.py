@@ -31,9 +31,17 @@ NEEDS_PALM = {"square", "heavy_square", "triangle", "tall_rectangle"}
 def fig13_out(tmp_path_factory):
     pytest.importorskip("matplotlib")
     pytest.importorskip("imageio")
-    out = tmp_path_factory.mktemp("fig13")
-    assert main(["--scene", "fig13", "--out", str(out)]) == 0
-    return out
+    # `--scene fig13 --out fig13`, run where the output folder fig13 already exists (a second
+    # run): the scene name still means the bundled scene, not the folder.
+    cwd = tmp_path_factory.mktemp("cli")
+    (cwd / "fig13").mkdir()
+    old = Path.cwd()
+    os.chdir(cwd)
+    try:
+        assert main(["--scene", "fig13", "--out", "fig13"]) == 0
+    finally:
+        os.chdir(old)
+    return cwd / "fig13"
 
 
 def test_cli_writes_every_output(fig13_out, capsys):
@@ -94,12 +102,29 @@ def test_cli_bad_arguments_name_the_field(argv, needle, tmp_path, capsys):
     assert needle in capsys.readouterr().err
 
 
+class _PublicOnly:
+    """The env as the policy sees it (``.unwrapped``), refusing private attributes: the
+    policy must get by with the env's public accessors."""
+
+    def __init__(self, env) -> None:
+        self._env = env
+
+    @property
+    def unwrapped(self):
+        return self
+
+    def __getattr__(self, name: str):
+        if name.startswith("_"):
+            raise AssertionError(f"ScriptedPolicy reads the private env attribute {name!r}")
+        return getattr(self._env.unwrapped, name)
+
+
 def _run_policy(scene: str, palm_control: bool, start: str, seed: int = 0, **kwargs):
     env = gym.make(
         "FrictionlessGrasp-v0", scene=scene, palm_control=palm_control, start=start, **kwargs
     )
     obs, info = env.reset(seed=seed)
-    policy = ScriptedPolicy(env)
+    policy = ScriptedPolicy(_PublicOnly(env))
     policy.reset(obs, info)
     steps, first_success = 0, None
     while True:
@@ -126,6 +151,20 @@ def test_scripted_policy_succeeds_on_fig13_through_the_env(palm_control, start):
     assert info["is_success"] and not info["dropped"]
     assert first_success is not None and first_success < steps  # then it held on
     assert info["grip_force"] / grasp_env.load_scene("fig13").object_weight < 3.0
+
+
+def test_scripted_policy_act_before_reset_is_a_clear_error():
+    env = gym.make("FrictionlessGrasp-v0")
+    policy = ScriptedPolicy(env)
+    with pytest.raises(RuntimeError, match=r"reset\(\) plans the episode"):
+        policy.act()
+    with pytest.raises(RuntimeError, match=r"env\.reset\(\)"):
+        policy.reset()  # the env has not been reset either
+    env.reset(seed=0)
+    with pytest.raises(RuntimeError, match=r"call ScriptedPolicy\.reset\(\)"):
+        policy.act()
+    policy.reset()
+    assert policy.act().shape == env.action_space.shape
 
 
 def _xfail(scene: str, palm_control: bool) -> list:

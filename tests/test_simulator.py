@@ -36,7 +36,7 @@ import grasp_env
 from grasp_env import Simulator, State
 from grasp_env.simulator import WorkLimitError
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
 SCENES = (
     "fig13",
     "square",

@@ -410,9 +410,9 @@ def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch
     obs, reward, term, _, info = env.step(good)
     assert "sim_error" not in info and not term
     assert_valid(
-        env.unwrapped._state.scene, info["object_pose"],
+        env.unwrapped.state.scene, info["object_pose"],
         np.r_[info["palm_pose"], info["finger_angles"]], info["contacts"],
-        tol_of(env.unwrapped._state.scene), "after recovery",
+        tol_of(env.unwrapped.state.scene), "after recovery",
     )  # fmt: skip
 
 

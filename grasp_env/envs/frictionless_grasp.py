@@ -137,6 +137,10 @@ class FrictionlessGraspEnv(gym.Env):
     * ``drop``: ``-reward_drop_weight`` (10) on a drop.
     * ``ctrl``: ``-reward_ctrl_weight * |a|^2`` on the clipped action (weight 0 by default).
 
+    The registered spec's ``reward_threshold`` is 10, the form-closure bonus: with the default
+    weights a return of at least 10 means the episode reached a grasp (the other terms stay
+    well below 10 without one; see ``grasp_env.envs.REWARD_THRESHOLD``).
+
     ## Starting State
 
     The object rests at its scene placement. The hand starts (``start`` kwarg)
@@ -171,7 +175,9 @@ class FrictionlessGraspEnv(gym.Env):
 
     ``info`` holds, at reset and every step: ``object_pose``, ``palm_pose``,
     ``finger_angles`` (np arrays), ``contacts`` (list of dicts: body, kind, point, normal,
-    force), ``form_closure``, ``grip_force`` (``y*``, ``nan`` when not in form closure),
+    force), ``form_closure``, ``grip_force`` (a float: ``y*`` in form closure, ``inf``
+    otherwise, and also when the joint torque limits admit no grip; ``math.isfinite`` tells a
+    held grasp, and any ``grip_force < limit`` test is False without one),
     ``jammed``, ``hand_blocked``, ``dropped``, ``events`` (the simulator's event kinds),
     ``is_success`` (form closure with the object off the support) and the reward terms
     (zero at reset); with ``always_compute_grip=True`` also ``grip_objective`` (``y*`` of any
@@ -183,8 +189,11 @@ class FrictionlessGraspEnv(gym.Env):
     gymnasium.make("FrictionlessGrasp-v0", scene="fig13", palm_control=False, start="scene")
     ```
 
-    * ``scene``: a bundled name, a YAML path, a dict in the scene schema, a ``Scene``, or a
-      list of them (one drawn uniformly at every reset). Default ``"fig13"``.
+    * ``scene``: a bundled name (:func:`grasp_env.bundled_scenes`), a YAML path, a dict in the
+      scene schema, a ``Scene``, or a list of them (one drawn uniformly at every reset).
+      Default ``"fig13"``. A string is a path only if it contains a path separator or ends
+      in ``.yaml``/``.yml`` (a ``pathlib.Path`` always is); otherwise it must be a bundled
+      name, whatever the working directory holds (:func:`grasp_env.load_scene`).
     * ``shape_randomizer``: None, True (default ranges) or a dict of ranges
       ``{"vertices": (3, 8), "size": (0.2, 0.45), "aspect": (1.0, 3.0), "mass": (0.05,
       0.5)}`` (size: the polygon's diameter in palm widths; see
@@ -203,13 +212,25 @@ class FrictionlessGraspEnv(gym.Env):
 
     ## Model
 
+    Policies that plan (the scripted planner, :class:`agents.scripted.ScriptedPolicy`) read the
+    env through public, read-only accessors of the unwrapped env (``env.unwrapped``; ``None``
+    before the first reset):
+
+    * :attr:`state`: the current :class:`grasp_env.State` (immutable: hand, object pose,
+      contacts and forces, events);
+    * :attr:`simulator`: the episode's :class:`grasp_env.Simulator`;
+    * :attr:`scene`: the episode's :class:`grasp_env.Scene`.
+
     ``env.unwrapped.simulate_action(state, action)`` returns the state an action leads to from
-    any state, exactly as ``step`` computes it, without changing the env: planners that act
-    through the env (the scripted policy's exploratory lifting) plan on it.
+    any state, exactly as ``step`` computes it (same action checks and clipping), without
+    changing the env: planners that act through the env (the scripted policy's exploratory
+    lifting) plan on it.
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version. ``info["grip_force"]`` is a plain float, ``inf`` outside form
+      closure; the spec has ``reward_threshold=10``; bundled scene names always mean the
+      bundled scenes.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
@@ -296,6 +317,31 @@ class FrictionlessGraspEnv(gym.Env):
         self._state: State | None = None
         self._analysis: dict[str, Any] = {}
         self._steps = 0
+
+    # ------------------------------------------------------------------ public accessors
+    @property
+    def state(self) -> State | None:
+        """The current simulator state (immutable; None before the first :meth:`reset`).
+
+        Holds the hand configuration, the object's pose, the contacts with their forces and the
+        last move's events (:class:`grasp_env.State`). Read-only: the env moves on only through
+        :meth:`reset` and :meth:`step`.
+        """
+        return self._state
+
+    @property
+    def simulator(self) -> Simulator | None:
+        """The :class:`grasp_env.Simulator` of the current episode (None before the first
+        :meth:`reset`). A model for planners: its ``move_hand`` and ``settle`` return new
+        states and leave the env as it is."""
+        return self._sim
+
+    @property
+    def scene(self) -> Scene | None:
+        """The :class:`grasp_env.Scene` of the current episode (None before the first
+        :meth:`reset`): one of :attr:`scenes`, the ``options["scene"]`` of the reset, or the
+        random shape drawn with ``shape_randomizer``."""
+        return None if self._state is None else self._state.scene
 
     # ------------------------------------------------------------------ validation
     def _load(self, spec: Any, name: str) -> Scene:
@@ -479,7 +525,7 @@ class FrictionlessGraspEnv(gym.Env):
         state = self._state
         self._steps += 1
         try:
-            new = self.simulate_action(state, a)
+            new = self._simulate(state, a)
             if not (np.all(np.isfinite(new.object_pose)) and np.all(np.isfinite(new.hand))):
                 raise SimulationError(
                     f"non-finite state: object {new.object_pose}, hand {new.hand}"
@@ -502,13 +548,40 @@ class FrictionlessGraspEnv(gym.Env):
             self.render()
         return self._get_obs(), reward, bool(dropped), False, info
 
-    def simulate_action(self, state: State, action: np.ndarray) -> State:
-        """The state an action leads to from ``state``, exactly as :meth:`step` computes it,
-        without changing the env: a model for planners that act through the env (the
-        scripted policy), so that what they plan is what the env then does, to the last bit.
-        ``action`` must already be valid (finite, in [-1, 1], of the action space's shape).
-        Raises ``SimulationError`` or ``SolverError`` where :meth:`step` ends the episode."""
-        a = np.asarray(action, dtype=float)
+    def simulate_action(self, state: State, action: Any) -> State:
+        """The state ``action`` leads to from ``state``, without changing the env.
+
+        Computed exactly as :meth:`step` computes it (same action checks and clipping, same
+        simulator call), so that what a planner acting through the env plans is what the env
+        then does, to the last bit: for the env's current state,
+        ``simulate_action(env.state, a)`` is the state ``step(a)`` moves to. Use it with
+        :attr:`state` (e.g. the scripted policy's exploratory lifting searches on it).
+
+        Args:
+            state: a state of the current episode's scene (:attr:`state` or one returned by
+                this method).
+            action: as for :meth:`step`: real numbers of the action space's shape, clipped
+                into [-1, 1].
+
+        Returns:
+            The new state (the env's own state is unchanged).
+
+        Raises:
+            ValueError: a bad action (as :meth:`step`).
+            TypeError: ``state`` is not a :class:`grasp_env.State`.
+            RuntimeError: called before the first :meth:`reset`.
+            SimulationError, SolverError: where :meth:`step` would end the episode with
+                ``info["sim_error"]``.
+        """
+        a = self._check_action(action)
+        if self._sim is None:
+            raise RuntimeError("call reset() before simulate_action()")
+        if not isinstance(state, State):
+            raise TypeError(f"state must be a grasp_env.State, got {_short(state)}")
+        return self._simulate(state, a)
+
+    def _simulate(self, state: State, a: np.ndarray) -> State:
+        """:meth:`simulate_action` of a checked action (floats in [-1, 1])."""
         h = state.hand
         fingers = h[3:] + self.max_finger_step * a[:2] * np.array([1.0, -1.0])
         palm = None
@@ -608,7 +681,7 @@ class FrictionlessGraspEnv(gym.Env):
             "finger_angles": state.finger_angles.copy(),
             "contacts": [c.as_dict() for c in state.contacts],
             "form_closure": bool(an["form_closure"]),
-            "grip_force": float(an["grip"]) if an["form_closure"] else NAN,
+            "grip_force": float(an["grip"]) if an["form_closure"] else math.inf,
             "jammed": bool(state.jammed),
             "hand_blocked": bool(state.hand_blocked),
             "dropped": bool(dropped),
@@ -662,29 +735,6 @@ class FrictionlessGraspEnv(gym.Env):
 
 
 _REWARD_KEYS = tuple(f"reward_{k}" for k in _REWARD_TERMS)
-
-
-class _NaN(float):
-    """The ``nan`` of ``info["grip_force"]`` outside form closure: a float NaN that compares
-    equal to another NaN, so that infos of identical steps compare equal (gymnasium's
-    ``check_env`` determinism check compares infos with ``==``)."""
-
-    def __new__(cls) -> _NaN:
-        return super().__new__(cls, "nan")
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, float) and math.isnan(other)
-
-    def __ne__(self, other: object) -> bool:
-        return not self == other
-
-    __hash__ = float.__hash__
-
-    def __reduce__(self):
-        return (_NaN, ())
-
-
-NAN = _NaN()
 
 
 class RestoreOnError(gym.Wrapper, gym.utils.RecordConstructorArgs):
