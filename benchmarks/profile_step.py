@@ -1,7 +1,7 @@
 """Where the time of one env step goes: a cProfile of random-action steps, by category.
 
-Also profiled: the ``fig13`` closing motion of the work-precision benchmark (issue 7's
-20 ms target).
+Also profiled: the ``fig13`` closing motion of the work-precision benchmark (its 20 ms
+target, benchmarks/README.md).
 
 Every profiled function's own time (cProfile ``tottime``) is charged to the nearest
 categorised function on its call path: a function matching a rule in :data:`PHASES` is its

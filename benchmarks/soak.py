@@ -81,7 +81,7 @@ BULGE_RANGE = (1e-12, 1e-9)
 
 
 # ---------------------------------------------------------------------------------------
-# Independent geometry (DESIGN.md section 2)
+# Independent geometry (docs/conventions.md, "Frames")
 # ---------------------------------------------------------------------------------------
 
 
@@ -101,7 +101,7 @@ def object_polygon_W(scene: Any, pose: np.ndarray) -> np.ndarray:
 
 def hand_polygons_W(scene: Any, hand: np.ndarray) -> dict[str, np.ndarray]:
     """World polygons (4, 2) of the palm and fingers for ``hand = (x, y, th, q1, q2)``, built
-    from DESIGN.md section 2: palm ``[-w/2, w/2] x [0, t]`` in P; finger i from its joint
+    from docs/conventions.md: palm ``[-w/2, w/2] x [0, t]`` in P; finger i from its joint
     ``J_i = (-+w/2, 0)`` to its tip ``J_i + L_i u_i``, thickness on the side away from the
     inward normal (``u_1`` turned by +pi/2, ``u_2`` by -pi/2)."""
     xp, yp, thp, q1, q2 = (float(v) for v in hand)
@@ -641,7 +641,8 @@ def checkpoint_path(seed: int, steps: int, shapes: int, folder: Path = OUT) -> P
 def run_soak(
     steps: int, shapes: int, workers: int, seed: int, checkpoint: Path | None = None
 ) -> tuple[list[dict], float]:
-    """Run (or resume) a soak; returns the per-shape records and this session's wall time."""
+    """Run (or resume) a soak; returns the per-shape records and the wall time of this call
+    (a resumed soak times only the shapes it runs)."""
     per_shape = [steps // shapes + (1 if i < steps % shapes else 0) for i in range(shapes)]
     done: dict[int, dict] = {}
     if checkpoint is not None and checkpoint.exists():
@@ -745,7 +746,7 @@ def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, rec
         f"| worst equilibrium residual (x weight; limit {EQ_RTOL:g}) | {s['residual']:.2e} |",
         f"| most negative descent-LP optimum (x weight) | {s['descent']:.2e} |",
         f"| env steps/s per process | {rate:.1f} |",
-        f"| env steps/s, all workers (this session's wall time {wall:.0f} s) | "
+        f"| env steps/s, all workers (wall time of this run {wall:.0f} s) | "
         f"{s['steps'] / wall if wall > 1 else math.nan:.1f} |",
         "",
     ]

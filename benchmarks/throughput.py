@@ -185,7 +185,7 @@ def run(
         lunar = base["LunarLander-v3"].rates
         ratio = statistics.median(x / y for x, y in zip(runners[0].rates, lunar, strict=True))
         target = (
-            f"Target (issue 7): random-action steps/s (default kwargs) >= LunarLander-v3: "
+            f"Target: random-action steps/s (default kwargs) >= LunarLander-v3: "
             f"{ratio:.3f} of it ({'met' if ratio >= 1.0 else 'not met'})."
         )
     body = [

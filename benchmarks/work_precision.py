@@ -34,7 +34,7 @@ from grasp_env.envs.shapes import hand_setup
 
 DQ = 0.01  #: finger increment of the closing motion (rad per move)
 SOLVERS = ("fast", "highs")
-TARGET_ERROR, TARGET_MS = 1e-9, 20.0  #: issue 7: fig13 closing to this error within this time
+TARGET_ERROR, TARGET_MS = 1e-9, 20.0  #: target: fig13 closing to this error within this time
 REF_TOLS = (1e-11, 1e-10)  #: contact_tol of the reference and of its cross-check
 RUN_LIMIT = 60.0  #: seconds after which one run is abandoned ("timeout")
 

@@ -1,9 +1,9 @@
 """grasp_env: frictionless enveloping grasping in the plane (Trinkle, Abel & Paul, IJRR 1988).
 
-The public API is DESIGN.md section 4: :func:`load_scene`, :class:`Simulator`, the analysis
-functions (:func:`is_form_closure`, :func:`is_force_closure`, :func:`grip_objective`,
-:func:`tippability_regions`, :func:`object_width`) and the Gymnasium environment
-``FrictionlessGrasp-v0``.
+The public API (docs/conventions.md, "Public API"): :func:`load_scene`, :class:`Simulator`,
+the analysis functions (:func:`is_form_closure`, :func:`is_force_closure`,
+:func:`grip_objective`, :func:`tippability_regions`, :func:`object_width`) and the Gymnasium
+environment ``FrictionlessGrasp-v0``.
 """
 
 from grasp_env import envs as _envs  # noqa: F401  (registers FrictionlessGrasp-v0)

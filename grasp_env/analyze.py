@@ -3,7 +3,8 @@
 Prints the object's mass, weight, area and width (section 3.2), its left and right
 tippability regions (section 2.4) and the closure status of the scene's initial state
 (section 2.5, eqs. 31-36): its contacts, form closure, force closure and the grip objective
-``y*``. The scene is a bundled name or a path to a YAML file (DESIGN.md section 3).
+``y*``. The scene is a bundled name or a path to a YAML file (docs/conventions.md, "Scene
+schema").
 
 Exit status: 0 on success; 2 when the scene cannot be loaded (the message, which names the
 field and the value, goes to stderr as ``error: <message>``). A failure of the simulator or

@@ -1,7 +1,7 @@
 """Contact geometry between the object and the support, palm and fingers.
 
-A contact is a vertex of one body on an edge of another (DESIGN.md section 2). It is
-identified by a key ``(body, kind, object_feature, hand_feature)``:
+A contact is a vertex of one body on an edge of another (docs/conventions.md, "Contacts"). It
+is identified by a key ``(body, kind, object_feature, hand_feature)``:
 
 * kind ``EDGE`` (``"edge"``): object vertex ``object_feature`` on edge ``hand_feature`` of the
   hand body (for the support, the line y = 0, ``hand_feature = 0``); the contact point is fixed
@@ -34,7 +34,7 @@ ContactKey = tuple[int, int, int, int]
 
 @dataclass(frozen=True)
 class Contact:
-    """A contact of a returned state (public, DESIGN.md section 4).
+    """A contact of a returned state (public API, docs/conventions.md).
 
     Attributes:
         body: ``"support"``, ``"palm"``, ``"finger1"`` or ``"finger2"``.

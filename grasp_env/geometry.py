@@ -1,9 +1,10 @@
 """Pure planar geometry: rotations, polygons, hand kinematics and world polygons of every body.
 
-Frames follow DESIGN.md section 2: world W (y up, support at y = 0), palm frame P with the
-finger joints at ``(-w/2, 0)`` and ``(+w/2, 0)``, object frame O at the object's centroid.
-A hand configuration is the vector ``h = (x_p, y_p, theta_p, q1, q2)``; an object pose is
-``q = (x, y, theta)``. Every polygon is an ``(n, 2)`` array of counter-clockwise vertices.
+Frames follow docs/conventions.md ("Frames"): world W (y up, support at y = 0), palm frame P
+with the finger joints at ``(-w/2, 0)`` and ``(+w/2, 0)``, object frame O at the object's
+centroid. A hand configuration is the vector ``h = (x_p, y_p, theta_p, q1, q2)``; an object
+pose is ``q = (x, y, theta)``. Every polygon is an ``(n, 2)`` array of counter-clockwise
+vertices.
 """
 
 from __future__ import annotations
@@ -95,8 +96,8 @@ def finger_polygon_local(length: float, thickness: float, finger: int) -> np.nda
     """CCW finger rectangle in its own link frame (x along the finger axis, origin at the joint).
 
     The palmar edge runs along the x axis; the body lies on the side away from the inward
-    normal, which is +y for finger 1 and -y for finger 2 (DESIGN.md section 2). The palmar
-    edge is always edge 3 (vertices 3 -> 0) so both fingers index it the same way.
+    normal, which is +y for finger 1 and -y for finger 2 (docs/conventions.md, "Frames"). The
+    palmar edge is always edge 3 (vertices 3 -> 0) so both fingers index it the same way.
     """
     L, t = length, thickness
     if finger == 1:  # inward normal +y; body at y in [-t, 0]

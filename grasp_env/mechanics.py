@@ -102,7 +102,8 @@ def W_F(
 def finger_gravity_moments(scene: Scene, h: np.ndarray) -> np.ndarray:
     """``s`` of eq. 17, shape (2,): minus the moment of each finger's weight about its joint.
 
-    The weight acts at the finger rectangle's centroid (DESIGN.md section 2).
+    The weight acts at the finger rectangle's centroid (docs/conventions.md, "Bodies and
+    masses").
     """
     poses = kin.body_poses_W(scene, h)
     out = np.empty(2)

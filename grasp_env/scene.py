@@ -1,6 +1,7 @@
 """Scene description: the hand, the object and gravity, loaded once from YAML and validated.
 
-The schema is DESIGN.md section 3. :func:`load_scene` accepts a bundled scene name (a file in
+The schema, with an annotated example, is in docs/conventions.md ("Scene schema").
+:func:`load_scene` accepts a bundled scene name (a file in
 the package's ``grasp_env/scenes/``, installed as package data), a path to a YAML file, or a
 dict in the same schema. Every bad input raises :class:`~grasp_env.errors.SceneError`
 naming the field and the value.
@@ -394,7 +395,7 @@ def _check_placement(scene: Scene) -> None:
 
 
 def scene_from_dict(d: Any, source: str | None = None) -> Scene:
-    """Build and validate a :class:`Scene` from a dict in the schema of DESIGN.md section 3.
+    """Build and validate a :class:`Scene` from a dict in the scene schema (docs/conventions.md).
 
     Besides the schema, every quantity must lie in the ranges of the module docstring; a
     value outside raises :class:`SceneError` naming the field, the value and the range.
@@ -457,8 +458,8 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
     looked up among the bundled scenes.
 
     Args:
-        spec: a bundled name, a path to a YAML file in the schema of DESIGN.md section 3,
-            a dict in that schema, or a :class:`Scene` (returned as it is).
+        spec: a bundled name, a path to a YAML file in the scene schema (docs/conventions.md,
+            "Scene schema"), a dict in that schema, or a :class:`Scene` (returned as it is).
 
     Returns:
         The validated scene; ``source`` holds the file it was read from (None for a dict).

@@ -40,6 +40,10 @@ from grasp_env.sim import consistency, dense, placement, pose
 from grasp_env.state import Event, State
 from grasp_env.width import object_width
 
+#: Accepted ``contact_tol`` (relative to the palm width), ``[lo, hi)``: below ``lo`` the
+#: contacts' own rounding (located events, Newton's residual, flush edges) is no longer small
+#: against the tolerance.
+CONTACT_TOL_RANGE = (1e-11, 1e-2)
 #: Largest contact force, in object weights, that counts as holding the object.
 MAX_FORCE = 1e6
 #: Chatter guard: an event (a contact lost, a jam) located more than CHATTER times in a row,
@@ -99,10 +103,11 @@ class Simulator:
         if lp_solver not in ("fast", "highs"):
             raise ValueError(f"lp_solver must be 'fast' or 'highs', got {lp_solver!r}")
         self.lp_solver = lp_solver
-        if not (isinstance(contact_tol, float | int) and 1e-11 <= contact_tol < 1e-2):
-            # Below 1e-11 palm widths the contacts' own rounding (located events, Newton's
-            # residual, flush edges) is no longer small against the tolerance.
-            raise ValueError(f"contact_tol must be in [1e-11, 1e-2), got {contact_tol!r}")
+        lo, hi = CONTACT_TOL_RANGE
+        if isinstance(contact_tol, bool) or not (
+            isinstance(contact_tol, float | int) and lo <= contact_tol < hi
+        ):
+            raise ValueError(f"contact_tol must be in [{lo:g}, {hi:g}), got {contact_tol!r}")
         if not (isinstance(max_step, float | int) and 0 < max_step <= 1):
             raise ValueError(f"max_step must be in (0, 1], got {max_step!r}")
         if not (isinstance(fall_step, float | int) and 0 < fall_step <= 1):

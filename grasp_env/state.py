@@ -32,7 +32,8 @@ class Event:
 
 @dataclass(frozen=True, eq=False)
 class State:
-    """Object pose, hand configuration and contacts (with forces) at rest (DESIGN.md section 4).
+    """Object pose, hand configuration and contacts (with forces) at rest (public API,
+    docs/conventions.md).
 
     Attributes:
         scene: the scene this state belongs to.

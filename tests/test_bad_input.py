@@ -107,6 +107,7 @@ KWARGS = [
     ("render_mode_unknown", {"render_mode": "video"}, r"render_mode", r"'video'"),
     ("contact_tol_inf", {"contact_tol": math.inf}, r"contact_tol", r"inf"),
     ("contact_tol_zero", {"contact_tol": 0.0}, r"contact_tol", r"0\.0"),
+    ("contact_tol_below_simulator", {"contact_tol": 1e-12}, r"contact_tol", r"1e-12"),
     ("palm_control_string", {"palm_control": "yes"}, r"palm_control", r"'yes'"),
     ("max_vertices_two", {"max_vertices": 2}, r"max_vertices", r"2"),
     ("max_vertices_float", {"max_vertices": 12.0}, r"max_vertices", r"12\.0"),

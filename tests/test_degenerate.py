@@ -320,7 +320,7 @@ def test_jam_before_the_support_is_not_hand_blocked() -> None:
     """The palm-flush set-up lowered towards y_p = 0.2: finger 2 (q2 = -0.3, tip 0.207 below
     the palm) would enter the support only below y_p = 0.207, but the hand jams on the box at
     y_p = 0.3 first. ``hand_blocked`` means "stopped short because the hand would enter the
-    support" (DESIGN.md section 4): it must be False here, with ``jammed`` True."""
+    support" (``State.hand_blocked``): it must be False here, with ``jammed`` True."""
     sc = scene(box(-0.1, 0.1, 0.3), (0.0, 0.5, 0.0), (-math.pi + 0.3, -0.3))
     sim = Simulator(sc)
     state = sim.move_hand(sim.reset(), palm=(0.0, 0.2, 0.0))

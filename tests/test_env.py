@@ -27,7 +27,8 @@ from grasp_env.planner import close_until_touch
 PALM_CONTROL = [False, True]
 PALM_IDS = ["fingers-only", "palm-control"]
 REWARD_KEYS = ["reward_form_closure", "reward_grip", "reward_lift", "reward_drop", "reward_ctrl"]
-DESIGN_INFO_KEYS = {
+#: The info keys that docs/conventions.md ("The environment") guarantees at reset and step.
+DOCUMENTED_INFO_KEYS = {
     "object_pose",
     "palm_pose",
     "finger_angles",
@@ -312,7 +313,7 @@ def test_info_keys_on_reset_and_step():
     env = FrictionlessGraspEnv()
     _, reset_info = env.reset(seed=0)
     for info in (reset_info, env.step(np.zeros(2))[-1]):
-        assert DESIGN_INFO_KEYS | {"events", "is_success", *REWARD_KEYS} <= info.keys()
+        assert DOCUMENTED_INFO_KEYS | {"events", "is_success", *REWARD_KEYS} <= info.keys()
         for key in ("object_pose", "palm_pose", "finger_angles"):
             assert isinstance(info[key], np.ndarray)
         assert all(

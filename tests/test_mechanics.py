@@ -1,6 +1,6 @@
 """Tests of grasp_env.mechanics and grasp_env.qp against independent computations.
 
-Every oracle here is written from the paper (sections 2.1-2.5, 3.2) and DESIGN.md section 2,
+Every oracle here is written from the paper (sections 2.1-2.5, 3.2) and docs/conventions.md,
 not from the library: gaps are differentiated numerically, hand points are moved with a
 forward kinematics written in this file, form closure is tested as positive spanning of the
 wrench columns (a convex hull and a separate LP), force closure with NNLS, the grip objective
@@ -98,7 +98,7 @@ def wrench_columns(points: np.ndarray, normals: np.ndarray, about: np.ndarray) -
 
 
 def own_frames(scene, h) -> dict[str, tuple[np.ndarray, float]]:
-    """World origin and angle of the palm and finger frames (DESIGN.md section 2).
+    """World origin and angle of the palm and finger frames (docs/conventions.md, "Frames").
 
     The palm frame is the palm pose; finger i's frame sits at its joint J_i = (-+w/2, 0) in P
     with its x axis along u_i = (cos q_i, sin q_i) in P, i.e. at world angle theta_p + q_i.

@@ -1037,3 +1037,12 @@ def test_bad_number_in_yaml_file_is_refused(
     path.write_text(text.replace(old, new))
     with pytest.raises(SceneError, match=pattern):
         load_scene(path)
+
+
+def test_scene_to_dict_round_trips_one_sided_torque_limits() -> None:
+    from grasp_env.envs.shapes import scene_to_dict
+
+    d = scene_to_dict(load_scene("fig13"))
+    d["fingers"][0]["torque_limits"] = [-math.inf, 50.0]
+    back = load_scene(scene_to_dict(load_scene(d)))
+    assert back.fingers[0].torque_limits == (-math.inf, 50.0)

@@ -2,7 +2,7 @@
 
 Nothing here is checked against the simulator's own earlier output. Every returned state is
 checked by :func:`assert_invariants`, which rebuilds the world polygons of the object and of
-the hand from DESIGN.md section 2 (not from :mod:`grasp_env.kinematics` or
+the hand from the conventions of docs/conventions.md (not from :mod:`grasp_env.kinematics` or
 :mod:`grasp_env.geometry`), measures penetration with its own separating-axis test,
 re-derives every contact's gap from its point and normal, sums the contact forces for the
 object's equilibrium and solves the velocity LP ``min m g v_y s.t. V_ob v >= 0`` itself
@@ -74,7 +74,7 @@ TEST_TIME_LIMIT = 90.0
 
 
 # ---------------------------------------------------------------------------------------
-# Independent geometry (DESIGN.md section 2; no grasp_env.geometry / kinematics)
+# Independent geometry (docs/conventions.md, "Frames"; no grasp_env.geometry / kinematics)
 # ---------------------------------------------------------------------------------------
 
 
@@ -1041,7 +1041,7 @@ def own_form_closure(state: State) -> bool:
 
 
 def own_force_closure(state: State) -> bool:
-    """Gravity balanced by non-negative contact forces (DESIGN.md: ``W_O c = w, c >= 0``)."""
+    """Gravity balanced by non-negative contact forces (``W_O c = w, c >= 0``)."""
     P = np.array([c.point for c in state.contacts], dtype=float).reshape(-1, 2)
     N = np.array([c.normal for c in state.contacts], dtype=float).reshape(-1, 2)
     com = state.object_pose[:2]

@@ -1,6 +1,6 @@
 """Property-based stress tests of the simulator and the environment on random convex shapes.
 
-Hypothesis draws convex polygons over the ranges of issue 8 (3-12 vertices, diameter 5%-80% of
+Hypothesis draws convex polygons over the stress ranges (3-12 vertices, diameter 5%-80% of
 the palm width, aspect up to 1:20, masses 1e-3..10, nearly collinear vertices, very short
 edges, nearly parallel edges, slivers: :func:`soak.stress_polygon`) and random hand paths or
 env action sequences. After every step the state is checked by :func:`soak.check_state`, an
@@ -277,7 +277,7 @@ def test_regression_object_tunnels_through_finger() -> None:
     the palm pushes the object along the support towards finger 2, which must stop it (a new
     contact, then a jam or the object squeezed up) -- never let it pass through (with the
     simulator of commit b5f21e7 the object ends crossed by finger 2, no vertex of either body
-    inside the other, penetration 0.05..0.17; reproducer /tmp/sim_bugs/tunnel_through_finger.py).
+    inside the other, penetration 0.05..0.17).
     """
     poly = np.array(TUNNEL_POLYGON) - [0.30381687, 0.0]
     scene = grasp_env.load_scene(soak.stress_scene(poly, 1.0))
@@ -323,8 +323,8 @@ def test_regression_jam_after_lost_contact_is_held() -> None:
     11 palm-control actions. At step 11 a contact is lost, a fall starts and ends at once, and
     the simulator reports a jam whose two finger contacts cannot hold the object (equilibrium
     residual 1.8e-6 x weight, an admissible descent of the same size; with the simulator of
-    commit bb97343 plus the working tree of 01:50 UTC). Reproducer:
-    /tmp/sim_bugs/soak_unheld_state.py 73."""
+    commit bb97343 plus the uncommitted changes of 01:50 UTC on 2026-11-22). This test is the
+    reproducer."""
     scene = grasp_env.load_scene(soak.stress_scene(np.array(UNHELD_POLYGON), 0.03590536183244385))
     run_env(scene, "random", UNHELD_ACTIONS, seed=83305122)
 
@@ -333,7 +333,7 @@ def test_regression_jam_after_lost_contact_is_held() -> None:
 def test_regression_soak_seed2_shape135() -> None:
     """Soak seed 2, shape 135 (a sliver, 0.04 thick, ``"preliftoff"`` start, random
     palm-control steps drawn from ``default_rng([2, 135])``; the first 139 of its 200 steps).
-    With the simulator of commit ffaa429 plus the working tree of 02:30 UTC, step 138 reported
+    With the simulator of commit ffaa429 plus uncommitted changes (02:30 UTC), step 138 reported
     a jam with the sliver wedged between exactly anti-parallel finger faces, contact forces
     of 1e11-2e12 x weight, an equilibrium residual of 5.7e-3 x weight and a free descent
     along the faces (the sliver should slide down between them). Fixed by the simulator's
@@ -344,7 +344,7 @@ def test_regression_soak_seed2_shape135() -> None:
 
 
 # ---------------------------------------------------------------------------------------
-# Failures inside the solver (issue 8, item 6)
+# Failures inside the solver (a failed solve is retried once on the reference path)
 # ---------------------------------------------------------------------------------------
 
 

@@ -20,7 +20,7 @@ from grasp_env.errors import SolverError
 from grasp_env.mechanics import grip_objective, is_form_closure
 from grasp_env.planner import centred_placement
 from grasp_env.scene import Scene, load_scene
-from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.simulator import CONTACT_TOL_RANGE, SimulationError, Simulator
 from grasp_env.state import State
 
 # Workspace and observation ranges, in palm widths (lengths) and radians, about the object's
@@ -204,7 +204,8 @@ class FrictionlessGraspEnv(gym.Env):
     * ``reward_form_closure_weight`` (10), ``reward_grip_weight`` (0.1),
       ``reward_lift_weight`` (1), ``reward_drop_weight`` (10), ``reward_ctrl_weight`` (0),
       ``gamma`` (0.99): see Rewards. Weights are finite and >= 0.
-    * ``contact_tol``: the simulator's contact tolerance, relative to the palm width (1e-9).
+    * ``contact_tol``: the simulator's contact tolerance, relative to the palm width (1e-9; in
+      [1e-11, 1e-2)).
     * ``max_vertices``: observation padding of the object's vertices (12).
     * ``always_compute_grip``: also compute ``y*`` outside form closure (False: skipped).
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
@@ -279,7 +280,9 @@ class FrictionlessGraspEnv(gym.Env):
             )
         }
         self.gamma = _number(gamma, "gamma", 0.0, 1.0)
-        self.contact_tol = _number(contact_tol, "contact_tol", 0.0, 1e-2, hi_open=True)
+        self.contact_tol = _number(
+            contact_tol, "contact_tol", *CONTACT_TOL_RANGE, lo_open=False, hi_open=True
+        )
         if isinstance(max_vertices, bool) or not isinstance(max_vertices, int | np.integer):
             raise TypeError(f"max_vertices must be an int, got {max_vertices!r}")
         if max_vertices < 3:

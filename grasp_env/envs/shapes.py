@@ -103,7 +103,8 @@ def hand_setup(scene: Scene, object_vertices_W: np.ndarray | None = None) -> np.
 
 
 def scene_to_dict(scene: Scene) -> dict[str, Any]:
-    """A scene in the schema of DESIGN.md section 3 (``load_scene`` of it gives it back)."""
+    """A scene as a dict in the scene schema of docs/conventions.md (``load_scene`` of it gives
+    it back)."""
 
     def finger(f) -> dict[str, Any]:
         d = {
@@ -113,7 +114,7 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
             "limits": list(f.limits),
             "density": f.density,
         }
-        if all(math.isfinite(x) for x in f.torque_limits):
+        if any(math.isfinite(x) for x in f.torque_limits):  # one-sided limits included
             d["torque_limits"] = list(f.torque_limits)
         return d
 
