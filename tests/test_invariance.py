@@ -215,6 +215,22 @@ CASES = [
 ]
 
 
+def run_scaled(d: dict, path: list, a: list, k: float) -> list:
+    """The run of ``path`` on scene ``d`` with every length times ``k`` (densities kept),
+    compared with the unscaled run ``a``: lengths by k, forces by k^2, the rest equal."""
+    b = run(scale_scene(d, k), [scale_hand(h, k) for h in path])
+    compare(
+        a, b,
+        pose_map=lambda q: np.array([q[0] * k, q[1] * k, q[2]]),
+        hand_map=lambda h: scale_hand(h, k),
+        point_map=lambda p: p * k,
+        body_map=lambda s: s,
+        force_factor=k**2,
+        length=k,
+    )  # fmt: skip
+    return b
+
+
 @pytest.mark.parametrize(
     "k",
     [0.01, pytest.param(3.0, marks=pytest.mark.slow), 250.0],
@@ -226,16 +242,7 @@ def test_scale_invariance(name: str, kind: str, k: float) -> None:
     d = raw(name)
     path = hand_path(d, kind)
     a = run(d, path)
-    b = run(scale_scene(d, k), [scale_hand(h, k) for h in path])
-    compare(
-        a, b,
-        pose_map=lambda q: np.array([q[0] * k, q[1] * k, q[2]]),
-        hand_map=lambda h: scale_hand(h, k),
-        point_map=lambda p: p * k,
-        body_map=lambda s: s,
-        force_factor=k**2,
-        length=k,
-    )  # fmt: skip
+    b = run_scaled(d, path, a, k)
     assert b[0].scene.object.mass == pytest.approx(a[0].scene.object.mass * k**2, rel=1e-12)
 
 
@@ -306,16 +313,7 @@ def test_scale_invariance_over_accepted_range(fig13_closing, k: float) -> None:
     the scene's torque limits and with binding ones) as at k = 1; y* >= W > 0 in form
     closure."""
     d, path, a = fig13_closing
-    b = run(scale_scene(d, k), [scale_hand(h, k) for h in path])
-    compare(
-        a, b,
-        pose_map=lambda q: np.array([q[0] * k, q[1] * k, q[2]]),
-        hand_map=lambda h: scale_hand(h, k),
-        point_map=lambda p: p * k,
-        body_map=lambda s: s,
-        force_factor=k**2,
-        length=k,
-    )  # fmt: skip
+    b = run_scaled(d, path, a, k)
     assert [st.form_closure for st in b] == [st.form_closure for st in a]
     for ya, yb in zip(grips(a), grips(b), strict=True):
         np.testing.assert_allclose(yb, ya, rtol=GRIP_RTOL)
