@@ -5,10 +5,12 @@ Command::
     python -m agents.scripted --scene fig13 --out DIR
 
 plans a grasp with :func:`grasp_env.planner.plan_grasp` and writes into ``DIR``:
-``filmstrip.png`` (numbered frames like the paper's Fig. 13: hand, object, contacts with force
-arrows, phase per frame), ``grip_branches.png`` (``y*`` against the first finger's angle on
-every four-contact branch through the final grasp, like Fig. 14), ``plan.gif`` (the whole
-plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase).
+``filmstrip.png`` (frames like the paper's Fig. 13 at the steps where something happens:
+hand, object, contacts with force arrows, a title per frame, a legend), ``grip_branches.png``
+(``y*`` against the first finger's angle along every four-contact branch the grip
+adjustment evaluated, zoomed to the adjustment, like Fig. 14), ``plan.gif`` (the whole
+plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase);
+the images are drawn by :mod:`agents.plan_figures`.
 It prints a summary and exits with status 0 on form closure, 1 if the plan fails (3 if the
 object cannot be lifted without friction), 2 on bad arguments. The images need the ``viz``
 extra (matplotlib, imageio).
@@ -40,22 +42,13 @@ from pathlib import Path
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
+from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
 from grasp_env import mechanics as mech
 from grasp_env import planner
 from grasp_env.errors import SolverError
 from grasp_env.scene import bundled_scenes, load_scene
 from grasp_env.simulator import SimulationError, Simulator
 
-#: Frames of the filmstrip (the paper's Fig. 13 has 15) and its layout.
-FILMSTRIP_FRAMES = 15
-FILMSTRIP_COLUMNS = 5
-FRAME_SIZE = (320, 240)
-GIF_SIZE = (320, 240)
-GIF_FRAME_MS = 120
-#: Half-width (rad) of the finger-1 range of the Fig. 14 plot about the final grasp.
-BRANCH_HALF_WIDTH = 0.15
 #: Object pose deviation (relative to the object's size) from the plan that makes the
 #: policy re-plan from the env's state.
 REPLAN_TOL = 1e-4
@@ -114,134 +107,6 @@ def plan_to_dict(plan: planner.Plan) -> dict:
         "form_closure_step": plan.form_closure_step(),
         "steps": steps,
     }
-
-
-def _frame_indices(plan: planner.Plan, n: int) -> list[int]:
-    """``n`` step indices spread over the plan, always with the phase boundaries, the first
-    form-closure step and the last step."""
-    last = len(plan.steps) - 1
-    keep = {0, last}
-    for a, b in plan.phase_bounds().values():
-        keep |= {a, b}
-    fc = plan.form_closure_step()
-    if fc is not None:
-        keep.add(fc)
-    for x in np.linspace(0, last, n):
-        if len(keep) >= n:
-            break
-        keep.add(round(float(x)))
-    return sorted(keep)
-
-
-def _caption(plan: planner.Plan, i: int, weight: float) -> str:
-    st = plan.steps[i]
-    text = f"{i}: {st.phase}"
-    if math.isfinite(st.grip):
-        text += f", y* = {st.grip / weight:.4f} W"
-    return text
-
-
-def plan_bounds(plan: planner.Plan, margin: float = 0.05) -> tuple[float, float, float, float]:
-    """World box ``(x_min, x_max, y_min, y_max)`` around every hand and object of the plan, plus
-    ``margin`` palm widths, and the support band below ``y = 0``."""
-    pts = []
-    for st in plan.steps:
-        s = st.state
-        pts.append(geo.transform(s.object_pose, s.scene.object.vertices_B))
-        pts.extend(kin.hand_polygons_W(s.scene, s.hand))
-    p = np.vstack(pts)
-    m = margin * plan.steps[0].state.scene.palm.width
-    return (p[:, 0].min() - m, p[:, 0].max() + m, -m, p[:, 1].max() + m)
-
-
-def write_filmstrip(plan: planner.Plan, path: Path) -> list[int]:
-    """Numbered frames of the plan in a grid (like the paper's Fig. 13); returns the steps."""
-    from grasp_env.render import Renderer
-
-    idx = _frame_indices(plan, FILMSTRIP_FRAMES)
-    weight = plan.steps[0].state.scene.object_weight
-    renderer = Renderer(*FRAME_SIZE, world_bounds=plan_bounds(plan))
-    try:
-        frames = [renderer.draw(plan.steps[i].state, _caption(plan, i, weight)) for i in idx]
-    finally:
-        renderer.close()
-    cols = min(FILMSTRIP_COLUMNS, len(frames))
-    rows = math.ceil(len(frames) / cols)
-    h, w, _ = frames[0].shape
-    sheet = np.full((rows * (h + 4), cols * (w + 4), 3), 255, np.uint8)
-    for k, f in enumerate(frames):
-        r, c = divmod(k, cols)
-        sheet[r * (h + 4) : r * (h + 4) + h, c * (w + 4) : c * (w + 4) + w] = f
-    _save_png(sheet, path)
-    return idx
-
-
-def _save_png(image: np.ndarray, path: Path) -> None:
-    imageio = _viz("imageio.v2")
-    imageio.imwrite(path, image)
-
-
-def write_gif(plan: planner.Plan, path: Path) -> None:
-    """Animated GIF of every step of the plan."""
-    from grasp_env.render import Renderer
-
-    imageio = _viz("imageio.v2")
-    weight = plan.steps[0].state.scene.object_weight
-    renderer = Renderer(*GIF_SIZE, world_bounds=plan_bounds(plan))
-    try:
-        frames = [
-            renderer.draw(st.state, _caption(plan, i, weight)) for i, st in enumerate(plan.steps)
-        ]
-    finally:
-        renderer.close()
-    imageio.mimsave(path, frames, duration=GIF_FRAME_MS, loop=0)
-
-
-def write_branch_plot(sim: Simulator, plan: planner.Plan, path: Path) -> list[dict]:
-    """``y*`` against ``q1`` on every four-contact branch through the final grasp (Fig. 14),
-    with the grip-adjustment steps as squares; returns the curves."""
-    plt = _viz("matplotlib.pyplot")
-    final = plan.steps[-1].state
-    curves = planner.grip_curves(sim, final, half_width=BRANCH_HALF_WIDTH)
-    weight = final.scene.object_weight
-    fig, ax = plt.subplots(figsize=(6.0, 4.0), dpi=100)
-    for c in curves:
-        if not c["q1"]:
-            continue
-        dropped = ", ".join(str(k + 1) for k in c["dropped"])
-        label = f"contact {dropped} broken" if dropped else "all four contacts kept"
-        style = "-" if c["form_closure"] else ":"
-        label += "" if c["form_closure"] else " (no form closure)"
-        ax.plot(c["q1"], np.asarray(c["grip"]) / weight, style, label=label)
-    fc = plan.form_closure_step()
-    steps = [(i, st.state.hand[3], st.grip / weight) for i, st in enumerate(plan.steps)][fc:]
-    if steps:
-        _, q, y = zip(*steps, strict=True)
-        ax.plot(q, y, "ks", markerfacecolor="none", label="form closure and grip adjustment")
-        for (i, qi, yi), offset in ((steps[0], (4, 8)), (steps[-1], (-20, -16))):
-            ax.annotate(f"step {i}", (qi, yi), textcoords="offset points", xytext=offset)
-    ax.axvline(final.hand[3], color="0.6", lw=0.8)
-    ax.set_xlabel("finger 1 angle q1 (rad)")
-    ax.set_ylabel("grip objective y* / object weight")
-    ax.set_title(f"{final.scene.name}: four-contact branches through the final grasp")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return curves
-
-
-def _viz(module: str):
-    """Import an optional plotting module, with a clear error if the extra is missing."""
-    import importlib
-
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise SystemExit(
-            f"error: {module.split('.')[0]} is needed for the images; "
-            "install the viz extra: pip install 'grasp_env[viz]'"
-        ) from exc
 
 
 def summary(plan: planner.Plan) -> str:

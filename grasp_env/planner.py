@@ -94,6 +94,29 @@ class PlanStep:
 
 
 @dataclass
+class BranchProbe:
+    """One grip-adjustment step's evaluation of one four-contact branch (a record only).
+
+    Attributes:
+        step: index in ``Plan.steps`` of the state the step started from.
+        kept: indices into that state's contacts of the four contacts the branch keeps.
+        q1: finger 1 angles at which :func:`adjust_grip` evaluated ``y*`` on the branch (the
+            ``eps`` probes either way, then the trial steps), in evaluation order; only where
+            the branch is valid.
+        grip: ``y*`` at those angles.
+        start: ``(q1, y*)`` of the state the step started from.
+        chosen: ``q1`` the hand moved to along this branch; None if it did not.
+    """
+
+    step: int
+    kept: tuple[int, ...]
+    q1: list[float] = field(default_factory=list)
+    grip: list[float] = field(default_factory=list)
+    start: tuple[float, float] = (math.nan, math.nan)
+    chosen: float | None = None
+
+
+@dataclass
 class Plan:
     """A grasp plan: its steps, how it ended, and the phase boundaries.
 
@@ -106,6 +129,8 @@ class Plan:
         placement: ``"tippability"`` (a fingertip at a support contact, Fig. 4) or
             ``"centred"`` (the paper's fallback).
         cpu_time: process time spent planning, seconds.
+        grip_probes: what the grip adjustment evaluated (:class:`BranchProbe`, one per branch
+            and step, in order); a record for plots (Fig. 14), not used by the planner.
     """
 
     steps: list[PlanStep] = field(default_factory=list)
@@ -113,6 +138,7 @@ class Plan:
     message: str = ""
     placement: str = ""
     cpu_time: float = 0.0
+    grip_probes: list[BranchProbe] = field(default_factory=list)
 
     @property
     def success(self) -> bool:
@@ -478,8 +504,11 @@ class FourContactBranch:
     joint), zero otherwise.
     """
 
-    def __init__(self, sim: Simulator, keys: list, hand: np.ndarray) -> None:
+    def __init__(
+        self, sim: Simulator, keys: list, hand: np.ndarray, kept: tuple[int, ...] = ()
+    ) -> None:
         self.sim, self.keys, self.hand = sim, list(keys), hand.copy()
+        self.kept = tuple(kept)  # indices of the keys among the contacts it was built from
 
     def solve(self, q1: float, z0: np.ndarray) -> np.ndarray | None:
         sim, z = self.sim, z0.copy()
@@ -562,7 +591,7 @@ def _branches(sim: Simulator, state: State) -> list[FourContactBranch]:
             state.scene, state.object_pose, state.hand, tuple(state.contacts[i] for i in sub)
         )
         if mech.is_form_closure(trial):
-            out.append(FourContactBranch(sim, [keys[i] for i in sub], state.hand))
+            out.append(FourContactBranch(sim, [keys[i] for i in sub], state.hand, sub))
     return out
 
 
@@ -587,7 +616,8 @@ def adjust_grip(
     may leave form closure for a moment), kept if the grasp ends closed off the support and
     ``y*`` falls (the plan then replays exactly). Stops when no branch lowers ``y*`` at a
     step of ``eps`` either way, or no such move keeps the grasp (the plan's message says
-    which).
+    which). Every ``y*`` it evaluates on a branch is recorded in ``plan.grip_probes`` (for
+    plots; the decisions do not read it).
     """
     y = mech.grip_objective(state)
     z = np.array([*state.object_pose, state.hand[4]])
@@ -595,10 +625,14 @@ def adjust_grip(
     weight = sim.scene.object_weight
     for _ in range(max_steps):
         candidates = []
+        probes = {}
         for br in _branches(sim, state):
+            probe = probes[id(br)] = BranchProbe(len(plan.steps) - 1, br.kept, start=(q1, y))
+            plan.grip_probes.append(probe)
             # the branch is usable only in directions where it stays valid and y* falls
             for sign in (1.0, -1.0):
                 y_nb, z_nb = br.grip(q1 + sign * eps, z)
+                _record(probe, q1 + sign * eps, y_nb, z_nb)
                 if z_nb is None or y_nb >= y:
                     continue
                 grad = (y_nb - y) / (sign * eps)
@@ -606,6 +640,7 @@ def adjust_grip(
                 found = (y_nb, q1 + sign * eps, z_nb)  # the eps step is known to descend
                 while abs(step) > eps:
                     y_new, z_new = br.grip(q1 + step, z)
+                    _record(probe, q1 + step, y_new, z_new)
                     if z_new is not None and y_new < y_nb:
                         found = (y_new, q1 + step, z_new)
                         break
@@ -617,6 +652,7 @@ def adjust_grip(
         for _, q1_new, z_new, br in sorted(candidates, key=lambda c: c[0]):
             moves, y_moved = _follow_branch(sim, state, br.config(q1_new, z_new), y)
             if moves:
+                probes[id(br)].chosen = q1_new
                 break
         else:
             plan.message = (
@@ -633,6 +669,13 @@ def adjust_grip(
         plan.steps.append(PlanStep("grip adjustment", state, y, _event_note(state)))
     plan.message = f"grip adjustment stopped after {max_steps} steps"
     return state
+
+
+def _record(probe: BranchProbe, q1: float, y: float, z: np.ndarray | None) -> None:
+    """Add an evaluation of ``y*`` on a branch to ``probe`` if the branch was valid there."""
+    if z is not None:
+        probe.q1.append(float(q1))
+        probe.grip.append(float(y))
 
 
 def _follow_branch(
@@ -679,7 +722,7 @@ def grip_curves(sim: Simulator, state: State, half_width: float = 0.15, n: int =
     keys = [c.key for c in state.contacts]
     q1_0 = float(state.hand[3])
     for sub in itertools.combinations(range(len(keys)), min(4, len(keys))):
-        br = FourContactBranch(sim, [keys[i] for i in sub], state.hand)
+        br = FourContactBranch(sim, [keys[i] for i in sub], state.hand, sub)
         trial = State(
             state.scene, state.object_pose, state.hand, tuple(state.contacts[i] for i in sub)
         )

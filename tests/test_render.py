@@ -7,6 +7,7 @@ import os
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
+import dataclasses
 import pickle
 import subprocess
 import sys
@@ -22,10 +23,14 @@ from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.render import (
     BACKGROUND,
     CONTACT_COLOR,
+    FINGER_COLOR,
     FORCE_COLOR,
     OBJECT_COLOR,
+    PALM_COLOR,
+    SUPPORT_COLOR,
     Renderer,
     scene_bounds,
+    workspace_bounds,
 )
 
 
@@ -68,16 +73,15 @@ def test_frame_shape_and_content(grasped_state, size):
 
 def test_world_to_pixel_map_is_y_up_and_isotropic(grasped_state):
     renderer = Renderer(400, 300, world_bounds=(-1.0, 1.0, -0.5, 1.0))
-    renderer._fit(grasped_state.scene)
+    renderer._fit(grasped_state)
     p = renderer.to_pixels(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
     dx, dy = p[1] - p[0], p[2] - p[0]
     assert dx[0] > 0 and dy[1] < 0  # x right, y up (pixel rows grow downwards)
     assert abs(dx[0]) == pytest.approx(abs(dy[1]))
-    # The requested box is inside the image.
+    # The requested box is inside the image, below the text band.
     corners = renderer.to_pixels(np.array([[-1.0, -0.5], [1.0, 1.0]]))
-    assert (
-        np.all(corners >= -1e-9) and np.all(corners[:, 0] <= 400) and np.all(corners[:, 1] <= 300)
-    )
+    assert np.all(corners[:, 0] >= -1e-9) and np.all(corners[:, 0] <= 400 + 1e-9)
+    assert np.all(corners[:, 1] >= renderer.band - 1e-9) and np.all(corners[:, 1] <= 300 + 1e-9)
 
 
 def test_scene_bounds_contain_hand_and_object():
@@ -88,6 +92,103 @@ def test_scene_bounds_contain_hand_and_object():
         assert poly[:, 1].min() >= y0 and poly[:, 1].max() < y1
     v = scene.object.vertices_W0
     assert v[:, 0].min() > x0 and v[:, 0].max() < x1 and y0 < 0 < v[:, 1].max() < y1
+
+
+def test_workspace_bounds_cover_the_fingers_closing_range():
+    scene = grasp_env.load_scene("fig13")
+    x0, x1, y0, y1 = workspace_bounds(scene)
+    h = scene.initial_hand.copy()
+    for q in np.linspace(-np.pi / 2, 0.0, 9):  # finger 1 closing, finger 2 mirrored
+        h[3:] = (q, -np.pi - q)
+        for poly in grasp_env.kinematics.hand_polygons_W(scene, h):
+            assert poly[:, 0].min() > x0 and poly[:, 0].max() < x1
+            assert poly[:, 1].min() > y0 and poly[:, 1].max() < y1
+    # Tighter than the fingers' whole range (which reaches out to the palm's level).
+    assert x1 - x0 < 2.0 * scene.palm.width
+
+
+def _body_rows(frame: np.ndarray) -> tuple[int, int]:
+    """First and last pixel row showing a body (palm, finger or object)."""
+    body = np.zeros(frame.shape[:2], bool)
+    for color in (PALM_COLOR, FINGER_COLOR, OBJECT_COLOR):
+        body |= np.all(frame == np.array(color, np.uint8), axis=-1)
+    rows = np.nonzero(body.any(axis=1))[0]
+    return int(rows.min()), int(rows.max())
+
+
+def test_env_frames_are_framed_on_the_hand_and_object():
+    env = FrictionlessGraspEnv(render_mode="rgb_array")
+    env.reset(seed=0)
+    frames = [env.render()]
+    view = env._renderer.view()
+    for _ in range(3):
+        for _ in range(5):
+            env.step(np.array([1.0, 1.0], dtype=np.float32))
+        frames.append(env.render())
+        assert env._renderer.view() == view  # the view holds still within the episode
+    env.close()
+    for k, frame in enumerate(frames):
+        assert frame.shape == (480, 640, 3)
+        top, bottom = _body_rows(frame)
+        # the bodies fill a good share of the height (the hand alone once the object is held)
+        assert (bottom - top) / 480 > (0.55 if k == 0 else 0.45), k
+        assert top > Renderer(640, 480).band  # none is cut off under the text band
+        # the support stays visible along the bottom
+        assert np.all(frame[-1] == np.array(SUPPORT_COLOR, np.uint8))
+    assert not np.array_equal(frames[0], frames[-1])
+
+
+def test_view_refits_when_a_body_leaves_it(grasped_state):
+    renderer = Renderer(320, 240)
+    renderer.draw(grasped_state)
+    view = renderer.view()
+    scene = grasped_state.scene
+    assert view == pytest.approx(renderer.view())
+    moved = dataclasses.replace(
+        grasped_state,
+        hand=grasped_state.hand + np.array([3.0 * scene.palm.width, 0.0, 0.0, 0.0, 0.0]),
+    )
+    renderer.draw(moved)
+    renderer.close()
+    x0, x1, y0, y1 = renderer.view()
+    assert renderer.view() != view
+    for poly in grasp_env.kinematics.hand_polygons_W(scene, moved.hand):
+        assert x0 <= poly[:, 0].min() and poly[:, 0].max() <= x1
+        assert y0 <= poly[:, 1].min() and poly[:, 1].max() <= y1
+
+
+def _ink_runs(image: np.ndarray, limit: int = 100) -> list[int]:
+    """Heights of the runs of pixel rows holding dark (text) pixels."""
+    dark = (image[..., :3].max(axis=-1) < limit).any(axis=1)
+    runs, n = [], 0
+    for d in dark:
+        if d:
+            n += 1
+        elif n:
+            runs.append(n)
+            n = 0
+    return runs + ([n] if n else [])
+
+
+def test_legend_shows_every_mark(grasped_state):
+    renderer = Renderer(640, 480)
+    strip = renderer.legend()
+    narrow = renderer.legend(300)
+    renderer.close()
+    assert strip.shape[1] == 640 and narrow.shape[1] == 300
+    assert narrow.shape[0] > strip.shape[0]  # wrapped onto more rows
+    for color in (SUPPORT_COLOR, PALM_COLOR, FINGER_COLOR, OBJECT_COLOR, CONTACT_COLOR):
+        assert _pixels_of(strip, color) > 0, color
+    assert _pixels_of(strip, FORCE_COLOR) > 0
+    assert min(_ink_runs(strip)) >= 10
+
+
+def test_text_is_readable_at_the_default_size():
+    renderer = Renderer(640, 480)
+    line = renderer.text_image(["fig13 | step 18 | form closure | y* = 1.49 W"], 640)
+    renderer.close()
+    assert renderer.font_size >= 20
+    assert _ink_runs(line) and _ink_runs(line)[0] >= 14
 
 
 def test_text_and_force_scale_change_the_frame(grasped_state):
@@ -105,10 +206,11 @@ def test_text_and_force_scale_change_the_frame(grasped_state):
     [
         ({"width": 0}, "width"),
         ({"height": 2.5}, "height"),
+        ({"font_size": 0}, "font_size"),
         ({"world_bounds": (1.0, 0.0, 0.0, 1.0)}, "world_bounds"),
         ({"world_bounds": (0.0, 1.0, 0.0, np.nan)}, "world_bounds"),
     ],
-    ids=["zero-width", "float-height", "inverted-bounds", "nan-bounds"],
+    ids=["zero-width", "float-height", "zero-font", "inverted-bounds", "nan-bounds"],
 )
 def test_renderer_refuses_bad_arguments(kwargs, name):
     with pytest.raises(ValueError, match=name):
