@@ -1,25 +1,42 @@
-"""Train a PPO agent (stable-baselines3, CPU) on one entry of ``configs/ppo.yml``.
+"""Train a PPO agent (stable-baselines3, CPU) on one env id of ``configs/ppo.yml``.
 
-    python -m agents.train_ppo --config configs/ppo.yml --env-id fig13_fingers \
-        [--seed 0] [--n-timesteps N] [--out DIR] [--log-dir DIR] [--device cpu]
+    python -m agents.train_ppo --env FrictionlessGrasp-v0 [--seed 0] [-n N] [--max-minutes M]
+        [-f runs] [--out DIR | --update-shipped]
 
-The model directory (``--out``, default ``agents/models/<entry>``) receives ``model.zip``,
-``vecnormalize.pkl`` (when the entry normalizes), ``config.yml`` (the entry as used) and
-``train_stats.json`` (timesteps, wall time, env steps/s); ``agents.evaluate`` loads it.
-TensorBoard logs, ``Monitor`` CSVs (episode return, length, ``is_success`` and the sum of
-every reward term), evaluation results and checkpoints go to ``--log-dir`` (default
-``runs/ppo/<entry>``). See ``docs/training.md``.
+``configs/ppo.yml`` is in rl-baselines3-zoo's format (top-level keys are env ids), and the
+training itself is the zoo's (:class:`rl_zoo3.exp_manager.ExperimentManager`: hyperparameter
+parsing, schedules, ``VecNormalize``, ``Monitor``, the ``env_wrapper`` and ``callback`` keys,
+evaluation and checkpoint callbacks, the run folder ``<log folder>/ppo/<env id>_<n>``), so
+``python -m rl_zoo3.train --algo ppo --env <id> --gym-packages grasp_env --conf-file
+configs/ppo.yml`` trains the same agent. This module adds what the zoo lacks:
+
+* the training-only wrapper and callback the config names (:class:`ApproachShaping`,
+  :class:`RewardTermsCallback`);
+* a wall-time limit, a progress line every ``--print-freq`` steps, an evaluation env seeded
+  apart from the training envs, and ``train_stats.json`` (steps, wall time, env steps/s);
+* checks of the config entry and the arguments before any work starts;
+* model directories (``model.zip``, ``vecnormalize.pkl``, ``config.yml``,
+  ``train_stats.json``), written only to ``--out`` or, with ``--update-shipped``, to
+  ``agents/models/<name>``, and :func:`load_agent`, which reads them and zoo run folders.
+
+See ``docs/training.md``.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
+import functools
+import importlib
+import inspect
 import json
 import math
 import os
 import platform
+import shutil
 import sys
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -30,115 +47,248 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
-from grasp_env.envs import ENTRY_POINT
+from grasp_env.envs import ENTRY_POINT, ENV_ID, RANDOM_SHAPES_ENV_ID
 
-#: Reward terms of FrictionlessGrasp-v0 (``info["reward_<term>"]``), summed per episode.
+#: Reward terms of FrictionlessGrasp (``info["reward_<term>"]``), summed per episode.
 REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
-#: Keys the Monitor CSV records at each episode's end.
+#: Keys the Monitor CSV of :func:`make_env` records at each episode's end.
 MONITOR_KEYWORDS = ("is_success", *(f"ep_reward_{t}" for t in REWARD_TERMS))
-#: Keys of a config entry that are not PPO constructor arguments.
+#: Keys of a config entry that are not PPO constructor arguments (the zoo's, and ``env_id``,
+#: which this module adds to every entry it reads).
 ENTRY_KEYS = (
     "env_id",
     "env_kwargs",
     "env_wrapper",
+    "vec_env_wrapper",
     "n_envs",
     "n_timesteps",
     "policy",
     "normalize",
+    "callback",
+    "monitor_kwargs",
+    "frame_stack",
 )
-#: Offsets of the evaluation env's seed from the training seed (training envs use
-#: ``seed .. seed + n_envs - 1``); ``agents.evaluate`` draws its held-out shapes elsewhere.
+#: Offset of the evaluation env's seed from the training seed (training envs use ``seed ..
+#: seed + n_envs - 1``; ``rl_zoo3.train`` seeds its evaluation env like training env 0).
 EVAL_SEED_OFFSET = 1000
 #: Measured on the 2-core machine (docs/training.md): with the current simulator DummyVecEnv
 #: is as fast or faster for 2 envs (SubprocVecEnv won only while a step was 3x slower).
 DEFAULT_VEC_ENV = "dummy"
+DEFAULT_CONFIG = "configs/ppo.yml"
+DEFAULT_LOG_FOLDER = "runs"
 MODEL_DIR = Path(__file__).resolve().parent / "models"
+#: The shipped model directory (``agents/models/<name>``) of each env id.
+SHIPPED = {ENV_ID: "fig13_fingers", RANDOM_SHAPES_ENV_ID: "random_shapes_palm"}
+#: Config names of the former scheme (top-level keys were config names), still accepted.
+LEGACY_NAMES = {name: env_id for env_id, name in SHIPPED.items()}
+
+DESCRIPTION = (
+    "Train a PPO agent (stable-baselines3 on the CPU, through rl-baselines3-zoo's "
+    "ExperimentManager) on one env id of a zoo-format hyperparameter file. Each run goes to "
+    "a new folder <log folder>/ppo/<env id>_<n> (model, VecNormalize statistics, Monitor "
+    "CSVs, evaluations, checkpoints, TensorBoard logs, train_stats.json); nothing is "
+    "overwritten unless --update-shipped is given. See docs/training.md."
+)
 
 
 # ---------------------------------------------------------------------- config
-def load_config(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
-    """Read a zoo-style YAML file: ``{config name: entry}``; fails naming the bad value."""
+class _ZooLoader(yaml.SafeLoader):
+    """A safe loader that also reads the zoo's saved ``config.yml``/``args.yml`` (dumped
+    ``OrderedDict``s), and nothing else beyond plain YAML."""
+
+
+def _ordered_dict(loader: yaml.SafeLoader, node: yaml.Node) -> dict:
+    (pairs,) = loader.construct_sequence(node, deep=True)
+    return dict(pairs)
+
+
+_ZooLoader.add_constructor(
+    "tag:yaml.org,2002:python/object/apply:collections.OrderedDict", _ordered_dict
+)
+
+
+def _read_yaml(path: str | os.PathLike, what: str) -> Any:
     try:
         text = Path(path).read_text()
     except OSError as exc:
-        raise ValueError(f"--config {str(path)!r}: cannot read it ({exc.strerror})") from None
-    config = yaml.safe_load(text)
+        raise ValueError(f"{what} {str(path)!r}: cannot read it ({exc.strerror})") from None
+    try:
+        return yaml.load(text, Loader=_ZooLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ValueError(f"{what} {str(path)!r}: not valid YAML{where}: {problem}") from None
+
+
+def load_config(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
+    """Read a hyperparameter file: ``{key: entry}``, each entry with its ``env_id``.
+
+    In rl-baselines3-zoo's format a key is an env id; an entry that has an ``env_id`` of its
+    own (the former scheme, still used by ``configs/rllib_ppo.yml``) is keyed by a config
+    name. Fails with a one-line message naming the file and the bad part.
+    """
+    config = _read_yaml(path, "config file")
     if not isinstance(config, dict) or not config:
-        raise ValueError(f"--config {str(path)!r}: expected a mapping of config names to entries")
-    for name, entry in config.items():
+        raise ValueError(f"config file {str(path)!r}: expected a mapping of env ids to entries")
+    entries = {}
+    for key, entry in config.items():
         if not isinstance(entry, dict):
-            raise ValueError(f"{path}: entry {name!r} must be a mapping, got {entry!r}")
-        if "env_id" not in entry:
-            raise ValueError(f"{path}: entry {name!r} has no env_id")
-        if not isinstance(entry.get("env_kwargs", {}), dict):
-            raise ValueError(f"{path}: entry {name!r}: env_kwargs must be a mapping")
-    return config
+            raise ValueError(f"{path}: entry {key!r} must be a mapping, got {entry!r}")
+        if not isinstance(entry.get("env_kwargs") or {}, dict):
+            raise ValueError(f"{path}: entry {key!r}: env_kwargs must be a mapping")
+        entries[str(key)] = {"env_id": str(key), **entry}
+    return entries
 
 
 def get_entry(config: dict[str, dict[str, Any]], name: str) -> dict[str, Any]:
-    """The entry called ``name``; fails listing the names there are."""
+    """The entry of env id ``name`` (or of a former config name); fails listing the keys."""
+    if name not in config and LEGACY_NAMES.get(name) in config:
+        name = LEGACY_NAMES[name]
     if name not in config:
-        raise ValueError(f"--env-id {name!r} is not in the config; choose from {sorted(config)}")
+        raise ValueError(f"env id {name!r} is not in the config; choose from {sorted(config)}")
     return config[name]
 
 
-def check_entry(name: str, entry: dict[str, Any]) -> None:
-    """Build and close one env of an entry; fails naming the entry and the bad kwarg."""
+def _expression(value: Any, key: str) -> Any:
+    """A zoo-style value that may be a Python expression string (``"dict(...)"``)."""
+    if not isinstance(value, str):
+        return value
+    import torch
+
     try:
-        make_env(entry["env_id"], entry.get("env_kwargs", {}), None, wrapper_specs(entry)).close()
-    except (gym.error.Error, TypeError, ValueError) as exc:
-        raise ValueError(f"entry {name!r}: cannot build its env: {exc}") from None
+        return eval(value, {"dict": dict, "nn": torch.nn, "th": torch})  # as the zoo has them
+    except Exception as exc:
+        raise ValueError(f"{key} {value!r}: not a valid expression ({exc})") from None
+
+
+def _schedule(value: Any, key: str):
+    from stable_baselines3.common.utils import LinearSchedule
+
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise ValueError(f"{key} {value!r}: expected a number or 'lin_<value>'")
+    if isinstance(value, str):
+        kind, _, start = value.partition("_")
+        try:
+            if kind != "lin":
+                raise ValueError
+            return LinearSchedule(float(start), 0.0, 1.0)
+        except ValueError:
+            raise ValueError(f"{key} {value!r}: expected a number or 'lin_<value>'") from None
+    return value
 
 
 def ppo_kwargs(entry: dict[str, Any]) -> dict[str, Any]:
-    """PPO constructor arguments of an entry, zoo-style strings turned into objects."""
-    import torch.nn as nn
-    from stable_baselines3.common.utils import LinearSchedule
-
+    """PPO constructor arguments of an entry, zoo-style strings turned into objects (for
+    ``benchmarks.ppo_throughput``, which builds PPO without the zoo)."""
     kwargs = {k: v for k, v in entry.items() if k not in ENTRY_KEYS}
-    if isinstance(kwargs.get("policy_kwargs"), str):
-        kwargs["policy_kwargs"] = eval(kwargs["policy_kwargs"], {"dict": dict, "nn": nn})
-    for key in ("learning_rate", "clip_range"):
-        value = kwargs.get(key)
-        if isinstance(value, str):
-            kind, _, start = value.partition("_")
-            if kind != "lin":
-                raise ValueError(f"{key} {value!r}: expected a number or 'lin_<value>'")
-            kwargs[key] = LinearSchedule(float(start), 0.0, 1.0)
+    if "policy_kwargs" in kwargs:
+        kwargs["policy_kwargs"] = _expression(kwargs["policy_kwargs"], "policy_kwargs")
+    for key in ("learning_rate", "clip_range", "clip_range_vf"):
+        if key in kwargs:
+            kwargs[key] = _schedule(kwargs[key], key)
     return kwargs
 
 
 def normalize_kwargs(entry: dict[str, Any]) -> dict[str, Any] | None:
     """``VecNormalize`` arguments of an entry (None: no normalization), as the zoo reads them."""
-    value = entry.get("normalize", False)
-    if isinstance(value, str):
-        value = eval(value, {"dict": dict})
+    value = _expression(entry.get("normalize", False), "normalize")
     if value is True:
         value = {}
-    if value is False:
+    if value is False or value is None:
         return None
+    if not isinstance(value, dict):
+        raise ValueError(f"normalize {entry['normalize']!r}: expected a bool or a dict")
     return {**value, "gamma": entry.get("gamma", 0.99)}
 
 
-# ---------------------------------------------------------------------- envs
-class EpisodeTerms(gym.Wrapper):
-    """Adds ``ep_reward_<term>``, each reward term summed over the episode, to every info."""
-
-    def reset(self, **kwargs):
-        self._sums = dict.fromkeys(REWARD_TERMS, 0.0)
-        obs, info = self.env.reset(**kwargs)
-        return obs, {**info, **self._episode_sums()}
-
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        for term in REWARD_TERMS:
-            self._sums[term] += info[f"reward_{term}"]
-        return obs, reward, terminated, truncated, {**info, **self._episode_sums()}
-
-    def _episode_sums(self) -> dict[str, float]:
-        return {f"ep_reward_{t}": v for t, v in self._sums.items()}
+def _import(path: Any, key: str) -> type:
+    """The object a dotted path names, as the zoo imports ``env_wrapper`` and ``callback``."""
+    if not isinstance(path, str) or "." not in path:
+        raise ValueError(f"{key} {path!r}: expected a dotted path such as 'package.module.Class'")
+    module, _, name = path.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"{key} {path!r}: cannot import it ({exc})") from None
 
 
+def _named_items(value: Any, key: str) -> list[tuple[Any, dict]]:
+    """The zoo's forms of ``env_wrapper``/``callback``: a path, ``{path: kwargs}`` or a list."""
+    items = value if isinstance(value, list) else [] if value is None else [value]
+    out = []
+    for item in items:
+        if isinstance(item, dict):
+            if len(item) != 1:
+                raise ValueError(f"{key} {item!r}: expected one {{path: kwargs}} per item")
+            ((name, kwargs),) = item.items()
+        else:
+            name, kwargs = item, {}
+        if not isinstance(kwargs or {}, dict):
+            raise ValueError(f"{key} {name!r}: its arguments must be a mapping, got {kwargs!r}")
+        out.append((name, kwargs or {}))
+    return out
+
+
+def wrapper_specs(entry: dict[str, Any]) -> list[tuple[type[gym.Wrapper], dict]]:
+    """The entry's ``env_wrapper`` as ``(class, kwargs)`` pairs, imported like the zoo does."""
+    return [
+        (_import(name, "env_wrapper"), kwargs)
+        for name, kwargs in _named_items(entry.get("env_wrapper"), "env_wrapper")
+    ]
+
+
+def check_entry(name: str, entry: dict[str, Any]) -> None:
+    """Check every value of an entry and build one env of it, before any training starts.
+
+    Fails with a ``ValueError`` naming the entry and the bad value.
+    """
+    from stable_baselines3 import PPO
+
+    def fail(message: str) -> None:
+        raise ValueError(f"entry {name!r}: {message}")
+
+    env_id = entry["env_id"]
+    if env_id not in gym.registry:
+        fail(f"{env_id!r} is not a registered env id")
+    try:
+        n_timesteps = float(entry["n_timesteps"])
+    except (KeyError, TypeError, ValueError):
+        fail(f"n_timesteps must be a number, got {entry.get('n_timesteps')!r}")
+    if not n_timesteps >= 1 or math.isinf(n_timesteps):
+        fail(f"n_timesteps must be positive, got {entry['n_timesteps']!r}")
+    n_envs = entry.get("n_envs", 1)
+    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
+        fail(f"n_envs must be a positive integer, got {n_envs!r}")
+    if not isinstance(entry.get("policy", "MlpPolicy"), str):
+        fail(f"policy must be a policy name, got {entry['policy']!r}")
+    allowed = set(inspect.signature(PPO.__init__).parameters) - {"self", "env", "policy"}
+    unknown = sorted(set(entry) - set(ENTRY_KEYS) - allowed)
+    if unknown:
+        fail(f"unknown key(s) {', '.join(map(str, unknown))}: neither the zoo's nor PPO's")
+    try:
+        kwargs = ppo_kwargs(entry)
+        if not isinstance(kwargs.get("policy_kwargs", {}), dict):
+            raise ValueError(f"policy_kwargs {entry['policy_kwargs']!r}: expected a dict")
+        normalize_kwargs(entry)
+        monitor = _expression(entry.get("monitor_kwargs", {}), "monitor_kwargs")
+        if not isinstance(monitor, dict) or not isinstance(monitor.get("info_keywords", ()), tuple):
+            raise ValueError(
+                f"monitor_kwargs {entry['monitor_kwargs']!r}: expected a dict with a tuple as "
+                "info_keywords, e.g. \"dict(info_keywords=('is_success',))\""
+            )
+        for path, _ in _named_items(entry.get("callback"), "callback"):
+            _import(path, "callback")
+        wrappers = wrapper_specs(entry)
+    except ValueError as exc:
+        fail(str(exc))
+    try:
+        make_env(env_id, entry.get("env_kwargs") or {}, None, wrappers).close()
+    except (gym.error.Error, TypeError, ValueError) as exc:
+        fail(f"cannot build its env: {exc}")
+
+
+# ---------------------------------------------------------------------- wrappers, callbacks
 class ApproachShaping(gym.Wrapper):
     """Potential-based shaping toward a grasp (training only; the optimal policy is unchanged).
 
@@ -170,21 +320,140 @@ class ApproachShaping(gym.Wrapper):
         return obs, reward + shaping, terminated, truncated, {**info, "reward_approach": shaping}
 
 
-#: Training-only wrappers a config entry may name in ``env_wrapper`` (zoo key).
-WRAPPERS = {"agents.train_ppo.ApproachShaping": ApproachShaping}
+@functools.cache
+def _callbacks() -> dict[str, type]:
+    """The SB3 callbacks of this module, defined on first use so that importing it (for
+    :class:`ApproachShaping` or :func:`load_config`, e.g. from ``agents.train_rllib``) needs
+    no stable-baselines3; ``agents.train_ppo.RewardTermsCallback`` etc. resolve through the
+    module's ``__getattr__``."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class RewardTermsCallback(BaseCallback):
+        """Logs to TensorBoard the mean over the last 100 episodes of each reward term's
+        episode sum (``rollout/ep_reward_<term>_mean``, from ``info["reward_<term>"]``,
+        shaping terms of wrappers such as ``reward_approach`` included), beside SB3's
+        ``rollout/ep_rew_mean``. Named in ``configs/ppo.yml`` (``callback``), so zoo runs
+        log the terms as well."""
+
+        def _on_training_start(self) -> None:
+            self._sums = [{} for _ in range(self.training_env.num_envs)]
+            self._episodes: deque[dict[str, float]] = deque(maxlen=100)
+
+        def _on_step(self) -> bool:
+            for sums, info, done in zip(
+                self._sums, self.locals["infos"], self.locals["dones"], strict=True
+            ):
+                for key, value in info.items():
+                    if key.startswith("reward_"):
+                        sums[key] = sums.get(key, 0.0) + float(value)
+                if done:
+                    self._episodes.append(dict(sums))
+                    sums.clear()
+            return True
+
+        def _on_rollout_end(self) -> None:
+            keys = sorted({key for episode in self._episodes for key in episode})
+            for key in keys:
+                values = [episode.get(key, 0.0) for episode in self._episodes]
+                self.logger.record(f"rollout/ep_{key}_mean", float(np.mean(values)))
+
+    class ProgressLines(BaseCallback):
+        """Prints one line every ``every`` env steps: steps done, rate, time left, mean
+        return of the last 100 episodes."""
+
+        def __init__(self, every: int, total: int):
+            super().__init__()
+            self.every, self.total = int(every), int(total)
+
+        def _on_training_start(self) -> None:
+            self.start, self.next = time.perf_counter(), self.every
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps < self.next:
+                return True
+            while self.next <= self.num_timesteps:
+                self.next += self.every
+            elapsed = time.perf_counter() - self.start
+            rate = self.num_timesteps / max(elapsed, 1e-9)
+            left = max(self.total - self.num_timesteps, 0) / max(rate, 1e-9)
+            returns = [episode["r"] for episode in self.model.ep_info_buffer]
+            mean = f", mean return {np.mean(returns):.2f}" if returns else ""
+            print(
+                f"{self.num_timesteps:,}/{self.total:,} steps "
+                f"({100 * self.num_timesteps / self.total:.0f}%), {rate:.1f} steps/s, "
+                f"{_minutes(elapsed)} elapsed, ~{_minutes(left)} left{mean}",
+                flush=True,
+            )
+            return True
+
+    class WallTimeLimit(BaseCallback):
+        """Stops training once ``max_seconds`` of wall time have passed (None: never)."""
+
+        def __init__(self, max_seconds: float | None):
+            super().__init__()
+            self.max_seconds = max_seconds
+
+        def _on_training_start(self) -> None:
+            self.deadline = time.perf_counter() + (self.max_seconds or math.inf)
+
+        def _on_step(self) -> bool:
+            return time.perf_counter() < self.deadline
+
+    classes = (RewardTermsCallback, ProgressLines, WallTimeLimit)
+    for cls in classes:
+        cls.__module__, cls.__qualname__ = __name__, cls.__name__
+    return {cls.__name__: cls for cls in classes}
 
 
-def wrapper_specs(entry: dict[str, Any]) -> list[tuple[type[gym.Wrapper], dict]]:
-    """The entry's ``env_wrapper`` (zoo forms: a name, ``{name: kwargs}`` or a list)."""
-    value = entry.get("env_wrapper") or []
-    items = value if isinstance(value, list) else [value]
-    specs = []
-    for item in items:
-        name, kwargs = next(iter(item.items())) if isinstance(item, dict) else (item, {})
-        if name not in WRAPPERS:
-            raise ValueError(f"env_wrapper {name!r} is not one of {sorted(WRAPPERS)}")
-        specs.append((WRAPPERS[name], kwargs or {}))
-    return specs
+def __getattr__(name: str) -> Any:
+    if name in ("RewardTermsCallback", "ProgressLines", "WallTimeLimit"):
+        return _callbacks()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _minutes(seconds: float) -> str:
+    minutes = int(seconds // 60)
+    return (
+        f"{minutes // 60}h{minutes % 60:02d}m"
+        if minutes >= 60
+        else f"{minutes}m{int(seconds % 60):02d}s"
+    )
+
+
+def _timed(callback) -> list[float]:
+    """Adds up the wall time of ``callback``'s steps (the periodic evaluation) in the list
+    it returns, so that it can be kept out of the training steps/s."""
+    seconds = [0.0]
+    on_step = callback._on_step
+
+    def timed() -> bool:
+        start = time.perf_counter()
+        try:
+            return on_step()
+        finally:
+            seconds[0] += time.perf_counter() - start
+
+    callback._on_step = timed
+    return seconds
+
+
+# ---------------------------------------------------------------------- envs without the zoo
+class EpisodeTerms(gym.Wrapper):
+    """Adds ``ep_reward_<term>``, each reward term summed over the episode, to every info."""
+
+    def reset(self, **kwargs):
+        self._sums = dict.fromkeys(REWARD_TERMS, 0.0)
+        obs, info = self.env.reset(**kwargs)
+        return obs, {**info, **self._episode_sums()}
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        for term in REWARD_TERMS:
+            self._sums[term] += info[f"reward_{term}"]
+        return obs, reward, terminated, truncated, {**info, **self._episode_sums()}
+
+    def _episode_sums(self) -> dict[str, float]:
+        return {f"ep_reward_{t}": v for t, v in self._sums.items()}
 
 
 def make_env(
@@ -193,8 +462,9 @@ def make_env(
     monitor_file: str | None = None,
     wrappers: list[tuple[type[gym.Wrapper], dict]] = (),
 ) -> gym.Env:
-    """One env of an entry: ``gym.make``, the entry's wrappers, ``Monitor``, which for
-    FrictionlessGrasp also logs ``is_success`` and the episode sums of the reward terms."""
+    """One env of an entry without the zoo (benchmarks, checks): ``gym.make``, the entry's
+    wrappers, ``Monitor``, which for FrictionlessGrasp also logs ``is_success`` and the episode
+    sums of the reward terms."""
     from stable_baselines3.common.monitor import Monitor
 
     env = gym.make(env_id, **env_kwargs)
@@ -222,7 +492,8 @@ def make_vec_env(
     vec_env: str = DEFAULT_VEC_ENV,
     monitor_dir: str | os.PathLike | None = None,
 ):
-    """``n_envs`` envs of an entry in a Dummy/SubprocVecEnv, seeded ``seed + rank``."""
+    """``n_envs`` envs of an entry in a Dummy/SubprocVecEnv, seeded ``seed + rank`` (for
+    ``benchmarks.ppo_throughput``, which times PPO without the zoo)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     if vec_env not in ("subproc", "dummy"):
@@ -230,7 +501,7 @@ def make_vec_env(
     factories = [
         _env_factory(
             entry["env_id"],
-            entry.get("env_kwargs", {}),
+            entry.get("env_kwargs") or {},
             None if monitor_dir is None else str(Path(monitor_dir) / str(rank)),
             wrapper_specs(entry),
         )
@@ -242,192 +513,252 @@ def make_vec_env(
     return venv
 
 
-# ---------------------------------------------------------------------- callbacks
-def _callbacks(
-    log_dir: Path,
-    eval_env,
-    eval_freq: int,
-    save_freq: int,
-    n_eval_episodes: int,
-    max_seconds: float | None,
-):
-    from stable_baselines3.common.callbacks import (
-        BaseCallback,
-        CallbackList,
-        CheckpointCallback,
-        EvalCallback,
-    )
-
-    class RewardTermsCallback(BaseCallback):
-        """Logs the episode means of the Monitor's extra keys to TensorBoard."""
-
-        def _on_rollout_end(self) -> None:
-            episodes = list(self.model.ep_info_buffer)
-            for key in MONITOR_KEYWORDS[1:]:
-                values = [ep[key] for ep in episodes if key in ep]
-                if values:
-                    self.logger.record(f"rollout/{key}_mean", float(np.mean(values)))
-
-        def _on_step(self) -> bool:
-            return True
-
-    class WallTimeLimit(BaseCallback):
-        """Stops training once ``max_seconds`` of wall time have passed."""
-
-        def _on_training_start(self) -> None:
-            self.deadline = time.perf_counter() + (max_seconds or math.inf)
-
-        def _on_step(self) -> bool:
-            return time.perf_counter() < self.deadline
-
-    class TimedEvalCallback(EvalCallback):
-        """EvalCallback that adds up its own wall time (kept out of the training steps/s)."""
-
-        seconds = 0.0
-
-        def _on_step(self) -> bool:
-            start = time.perf_counter()
-            try:
-                return super()._on_step()
-            finally:
-                self.seconds += time.perf_counter() - start
-
-    evaluation = TimedEvalCallback(
-        eval_env,
-        n_eval_episodes=n_eval_episodes,
-        eval_freq=eval_freq,
-        log_path=str(log_dir / "eval"),
-        best_model_save_path=str(log_dir / "eval"),
-        deterministic=True,
-        verbose=0,
-    )
-    checkpoints = CheckpointCallback(
-        save_freq=save_freq,
-        save_path=str(log_dir / "checkpoints"),
-        name_prefix="ppo",
-        save_vecnormalize=True,
-    )
-    callbacks = [RewardTermsCallback(), evaluation, checkpoints, WallTimeLimit()]
-    return CallbackList(callbacks), evaluation
-
-
 # ---------------------------------------------------------------------- training
+def _manager_class():
+    from rl_zoo3.exp_manager import ExperimentManager
+
+    class Manager(ExperimentManager):
+        """The zoo's ExperimentManager with the evaluation env seeded ``seed + 1000``, so
+        that it does not replay training env 0's episodes (random shapes)."""
+
+        def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False):
+            if not eval_env:
+                return super().create_envs(n_envs, eval_env, no_log)
+            seed, self.seed = self.seed, self.seed + EVAL_SEED_OFFSET
+            try:
+                return super().create_envs(n_envs, eval_env, no_log)
+            finally:
+                self.seed = seed
+
+    return Manager
+
+
+def prepare(
+    env_id: str,
+    conf_file: str | os.PathLike = DEFAULT_CONFIG,
+    hyperparams: dict[str, Any] | None = None,
+    n_timesteps: int | None = None,
+) -> tuple[str, dict[str, Any]]:
+    """``(env id, entry)`` of a training run, overrides applied, checked (ValueError)."""
+    config = load_config(conf_file)
+    entry = get_entry(config, env_id)
+    key = next(k for k, v in config.items() if v is entry)
+    if entry["env_id"] != key:
+        raise ValueError(
+            f"config file {str(conf_file)!r}: entry {key!r} is in the former format (a config "
+            "name with an env_id); rl-baselines3-zoo keys entries by env id (docs/training.md)"
+        )
+    env_id = key
+    entry = {**entry, **(hyperparams or {})}
+    if n_timesteps is not None:
+        entry["n_timesteps"] = n_timesteps
+    check_entry(env_id, entry)
+    return env_id, entry
+
+
 def train(
-    config_path: str | os.PathLike,
-    name: str,
+    env_id: str,
     *,
+    conf_file: str | os.PathLike = DEFAULT_CONFIG,
+    hyperparams: dict[str, Any] | None = None,
     seed: int = 0,
     n_timesteps: int | None = None,
+    log_folder: str | os.PathLike = DEFAULT_LOG_FOLDER,
     out: str | os.PathLike | None = None,
-    log_dir: str | os.PathLike | None = None,
     device: str = "cpu",
     vec_env: str = DEFAULT_VEC_ENV,
     eval_freq: int = 10_000,
     n_eval_episodes: int = 5,
     save_freq: int = 25_000,
     max_minutes: float | None = None,
-    progress_bar: bool = True,
+    progress: bool = False,
+    print_freq: int = 5_000,
+    num_threads: int = 1,
+    verbose: int = 0,
 ) -> Path:
-    """Train PPO on config entry ``name``; returns the model directory.
+    """Train PPO on the config entry of ``env_id`` with the zoo; returns the run folder.
 
-    ``eval_freq`` and ``save_freq`` count env steps over all envs; ``max_minutes`` stops
-    training early (the model is saved as it is then).
+    The run folder is ``<log_folder>/ppo/<env id>_<n>`` (a new ``n`` each run, as the zoo
+    numbers them), with ``train_stats.json`` added. ``out`` also writes a model directory
+    there. ``hyperparams`` override the entry's keys (the zoo's ``--hyperparams``);
+    ``eval_freq`` and ``save_freq`` count env steps over all envs (<= 0: off); ``max_minutes``
+    stops training early (the model is saved as it is then).
     """
     import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+    from stable_baselines3.common.utils import set_random_seed
 
-    torch.set_num_threads(1)  # measured faster on 2 shared cores (docs/training.md)
-    entry = get_entry(load_config(config_path), name)
-    out = Path(out) if out is not None else MODEL_DIR / name
-    log_dir = Path(log_dir) if log_dir is not None else Path("runs") / "ppo" / name
-    total = int(n_timesteps if n_timesteps is not None else entry["n_timesteps"])
-    n_envs = int(entry.get("n_envs", 1))
-    if total <= 0:
-        raise ValueError(f"n_timesteps must be positive, got {total}")
-    out.mkdir(parents=True, exist_ok=True)
-    (log_dir / "monitor").mkdir(parents=True, exist_ok=True)
-
-    venv = make_vec_env(entry, n_envs, seed, vec_env, log_dir / "monitor")
-    eval_env = make_vec_env(entry, 1, seed + EVAL_SEED_OFFSET, "dummy")
-    norm = normalize_kwargs(entry)
-    if norm is not None:
-        venv = VecNormalize(venv, **norm)
-        eval_env = VecNormalize(eval_env, **{**norm, "training": False, "norm_reward": False})
-    callback, evaluation = _callbacks(
-        log_dir,
-        eval_env,
-        eval_freq=max(eval_freq // n_envs, 1),
-        save_freq=max(save_freq // n_envs, 1),
-        n_eval_episodes=n_eval_episodes,
-        max_seconds=None if max_minutes is None else 60.0 * max_minutes,
-    )
-    model = PPO(
-        entry.get("policy", "MlpPolicy"),
-        venv,
+    env_id, entry = prepare(env_id, conf_file, hyperparams, n_timesteps)
+    overrides = {**(hyperparams or {})}
+    total = int(float(entry["n_timesteps"]))
+    torch.set_num_threads(num_threads)  # 1: measured faster on 2 shared cores
+    set_random_seed(seed)
+    args = argparse.Namespace(
+        algo="ppo",
+        env=env_id,
+        conf_file=str(conf_file),
+        hyperparams=overrides or None,
+        env_kwargs=None,
         seed=seed,
+        n_timesteps=total,
+        log_folder=str(log_folder),
+        out=None if out is None else str(out),
         device=device,
-        tensorboard_log=str(log_dir / "tb"),
-        verbose=0,
-        **ppo_kwargs(entry),
+        vec_env=vec_env,
+        eval_freq=eval_freq,
+        eval_episodes=n_eval_episodes,
+        save_freq=save_freq,
+        max_minutes=max_minutes,
+        num_threads=num_threads,
     )
+    manager = _manager_class()(
+        args,
+        "ppo",
+        env_id,
+        str(log_folder),
+        n_timesteps=total,
+        eval_freq=eval_freq,
+        n_eval_episodes=n_eval_episodes,
+        save_freq=save_freq,
+        hyperparams=overrides or None,
+        seed=seed,
+        log_interval=-1,  # SB3's default
+        verbose=verbose,
+        vec_env_type=vec_env,
+        device=device,
+        config=str(conf_file),
+        show_progress=progress,
+    )
+    run = Path(manager.save_path)
+    manager.tensorboard_log = str(run / "tb")
+    model, saved = manager.setup_experiment()
+    eval_seconds = [0.0]
+    for callback in manager.callbacks:
+        if isinstance(callback, EvalCallback):
+            eval_seconds = _timed(callback)
+        if isinstance(callback, CheckpointCallback):
+            callback.save_vecnormalize = True  # a checkpoint is useless without its statistics
+    manager.callbacks.append(
+        _callbacks()["WallTimeLimit"](None if max_minutes is None else 60.0 * max_minutes)
+    )
+    if print_freq > 0 and not progress:
+        manager.callbacks.append(_callbacks()["ProgressLines"](print_freq, total))
+
     load_start = os.getloadavg()[0]
     start = time.perf_counter()
-    model.learn(total, callback=callback, progress_bar=progress_bar, tb_log_name="ppo")
+    manager.learn(model)
     wall = time.perf_counter() - start
+    manager.save_trained_model(model)
 
-    model.save(out / "model.zip")
-    if norm is not None:
-        venv.save(str(out / "vecnormalize.pkl"))
-    venv.close()
-    eval_env.close()
-    used = {name: {**entry, "n_timesteps": int(model.num_timesteps)}}
-    (out / "config.yml").write_text(yaml.safe_dump(used, sort_keys=False))
     stats = {
-        "config": name,
+        "env_id": env_id,
         "seed": seed,
         "timesteps": int(model.num_timesteps),
         "timesteps_planned": total,
         "wall_time_s": round(wall, 1),
         "env_steps_per_s": round(model.num_timesteps / wall, 1),
-        "eval_time_s": round(evaluation.seconds, 1),
-        "env_steps_per_s_without_eval": round(model.num_timesteps / (wall - evaluation.seconds), 1),
-        "n_envs": n_envs,
-        "vec_env": vec_env if n_envs > 1 else "dummy",
+        "eval_time_s": round(eval_seconds[0], 1),
+        "env_steps_per_s_without_eval": round(model.num_timesteps / (wall - eval_seconds[0]), 1),
+        "n_envs": manager.n_envs,
+        "vec_env": vec_env if manager.n_envs > 1 else "dummy",
         "torch_threads": torch.get_num_threads(),
         "load_average_1min": [round(load_start, 1), round(os.getloadavg()[0], 1)],
         "device": device,
         "cpu": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
-        "last_eval_mean_reward": float(evaluation.last_mean_reward),
+        "last_eval_mean_reward": next(
+            (
+                float(c.last_mean_reward)
+                for c in manager.callbacks
+                if isinstance(c, EvalCallback) and math.isfinite(c.last_mean_reward)
+            ),
+            None,
+        ),
+        "run": str(run),
         "versions": {
             "python": platform.python_version(),
             "torch": torch.__version__,
             "stable_baselines3": sys.modules["stable_baselines3"].__version__,
+            "rl_zoo3": importlib.import_module("rl_zoo3").__version__,
         },
     }
-    (out / "train_stats.json").write_text(json.dumps(stats, indent=2) + "\n")
+    (run / "train_stats.json").write_text(json.dumps(stats, indent=2) + "\n")
+    if out is not None:
+        used = {key: value for key, value in saved.items() if key != "env_id"}
+        export_model(run, out, {env_id: {**used, "n_timesteps": int(model.num_timesteps)}})
+    return run
+
+
+def export_model(run: str | os.PathLike, out: str | os.PathLike, config: dict) -> Path:
+    """Write the model directory ``out`` from a zoo run folder: ``model.zip``,
+    ``vecnormalize.pkl`` (if the run normalizes), ``config.yml`` (``config``, zoo format) and
+    ``train_stats.json``."""
+    run, out = Path(run), Path(out)
+    ((env_id, _),) = config.items()
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(run / f"{env_id}.zip", out / "model.zip")
+    norm = run / env_id / "vecnormalize.pkl"
+    if norm.is_file():
+        shutil.copyfile(norm, out / "vecnormalize.pkl")
+    else:
+        (out / "vecnormalize.pkl").unlink(missing_ok=True)
+    (out / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    shutil.copyfile(run / "train_stats.json", out / "train_stats.json")
     return out
 
 
+# ---------------------------------------------------------------------- loading
 def load_agent(model_dir: str | os.PathLike):
-    """Load a model directory: ``(model, vecnormalize or None, config entry name, entry)``."""
+    """Load a model: ``(model, vecnormalize or None, name, entry)``.
+
+    ``model_dir`` is a model directory (``model.zip``, ``config.yml``, maybe
+    ``vecnormalize.pkl``; ``name`` is the directory's name, or the config name of a
+    former-format ``config.yml``) or a zoo run folder (``<env id>.zip`` and ``<env
+    id>/config.yml``, as ``rl_zoo3.train`` and this module write them; ``name`` is the
+    folder's name). The entry's ``env_kwargs`` are complete: the env id's registered ones
+    updated with the config's (and the zoo's ``--env-kwargs``).
+    """
     import pickle
 
     from stable_baselines3 import PPO
 
     model_dir = Path(model_dir)
-    if not (model_dir / "model.zip").is_file():
-        raise ValueError(f"model directory {str(model_dir)!r} has no model.zip")
-    ((name, entry),) = load_config(model_dir / "config.yml").items()
-    model = PPO.load(model_dir / "model.zip", device="cpu")
+    if (model_dir / "model.zip").is_file():
+        ((key, entry),) = load_config(model_dir / "config.yml").items()
+        name = key if key != entry["env_id"] else model_dir.resolve().name
+        model_file, norm_file = model_dir / "model.zip", model_dir / "vecnormalize.pkl"
+    else:
+        runs = sorted(
+            p.parent
+            for p in model_dir.glob("*/config.yml")
+            if (model_dir / f"{p.parent.name}.zip").is_file()
+        )
+        if len(runs) != 1:
+            raise ValueError(
+                f"model directory {str(model_dir)!r} has neither model.zip nor one zoo model "
+                "(<env id>.zip beside <env id>/config.yml)"
+            )
+        params = runs[0]
+        hyperparams = _read_yaml(params / "config.yml", "config file") or {}
+        args = (
+            _read_yaml(params / "args.yml", "args file") if (params / "args.yml").is_file() else {}
+        )
+        env_id = (args or {}).get("env") or params.name
+        kwargs = {**(hyperparams.get("env_kwargs") or {}), **((args or {}).get("env_kwargs") or {})}
+        entry = {**hyperparams, "env_id": env_id, "env_kwargs": kwargs}
+        name = model_dir.resolve().name
+        model_file, norm_file = model_dir / f"{params.name}.zip", params / "vecnormalize.pkl"
+    registered = gym.spec(entry["env_id"]).kwargs if entry["env_id"] in gym.registry else {}
+    entry = {**entry, "env_kwargs": {**registered, **(entry.get("env_kwargs") or {})}}
+    model = PPO.load(model_file, device="cpu")
     norm = None
-    if (model_dir / "vecnormalize.pkl").is_file():
-        with open(model_dir / "vecnormalize.pkl", "rb") as f:
+    if norm_file.is_file():
+        with open(norm_file, "rb") as f:
             norm = pickle.load(f)
         norm.training, norm.norm_reward = False, False
     return model, norm, name, entry
 
 
+# ---------------------------------------------------------------------- command line
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -436,6 +767,13 @@ def _positive_int(text: str) -> int:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
     return value
+
+
+def _int(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
 
 
 def _positive_float(text: str) -> float:
@@ -448,47 +786,180 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m agents.train_ppo", description=__doc__)
-    parser.add_argument("--config", default="configs/ppo.yml", help="zoo-style YAML file")
-    parser.add_argument("--env-id", required=True, help="config name (top-level key)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--n-timesteps", type=_positive_int, help="override n_timesteps")
-    parser.add_argument("--out", help="model directory (default agents/models/<entry>)")
-    parser.add_argument("--log-dir", help="logs, evaluations, checkpoints (runs/ppo/<entry>)")
-    parser.add_argument("--device", default="cpu", choices=["cpu", "cuda", "auto"])
-    parser.add_argument("--vec-env", default=DEFAULT_VEC_ENV, choices=["subproc", "dummy"])
-    parser.add_argument("--eval-freq", type=_positive_int, default=10_000, help="env steps")
-    parser.add_argument("--eval-episodes", type=_positive_int, default=5)
-    parser.add_argument("--save-freq", type=_positive_int, default=25_000, help="env steps")
-    parser.add_argument(
-        "--max-minutes", type=_positive_float, help="stop training after this wall time"
-    )
-    parser.add_argument("--no-progress-bar", action="store_true")
-    args = parser.parse_args(argv)
+def _override(text: str) -> tuple[str, Any]:
+    """``key:value`` of ``--hyperparams``: the value is a Python literal, else a string (which
+    the zoo evaluates where it expects an expression, e.g. ``policy_kwargs:dict(...)``)."""
+    key, sep, value = text.partition(":")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected key:value, got {text!r}")
     try:
-        check_entry(args.env_id, get_entry(load_config(args.config), args.env_id))
+        return key, ast.literal_eval(value)
+    except (ValueError, SyntaxError):
+        return key, value
+
+
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows a default only where there is one (not None, not an off switch)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default is None or action.default is False or action.help == argparse.SUPPRESS:
+            return action.help or ""
+        return super()._get_help_string(action)
+
+
+class _Parser(argparse.ArgumentParser):
+    """Reports a bad argument or file in one line (no usage block)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def parser() -> argparse.ArgumentParser:
+    p = _Parser(
+        prog="python -m agents.train_ppo",
+        description=DESCRIPTION,
+        formatter_class=_Formatter,
+    )
+    p.add_argument(
+        "--env",
+        "--env-id",
+        dest="env",
+        default=ENV_ID,
+        metavar="ID",
+        help=f"env id, a top-level key of --conf-file ({ENV_ID} or {RANDOM_SHAPES_ENV_ID})",
+    )
+    p.add_argument(
+        "-conf",
+        "--conf-file",
+        "--config",
+        dest="conf_file",
+        default=DEFAULT_CONFIG,
+        metavar="FILE",
+        help="hyperparameter file in rl-baselines3-zoo's format",
+    )
+    p.add_argument(
+        "--seed", type=_int, default=0, metavar="N", help="training env k is seeded seed + k"
+    )
+    p.add_argument(
+        "-n",
+        "--n-timesteps",
+        type=_positive_int,
+        metavar="N",
+        help="total env steps (default: the entry's n_timesteps)",
+    )
+    p.add_argument(
+        "--max-minutes",
+        type=_positive_float,
+        metavar="M",
+        help="stop after M minutes of wall time (the model is saved as it is then)",
+    )
+    p.add_argument(
+        "-params",
+        "--hyperparams",
+        nargs="+",
+        type=_override,
+        metavar="KEY:VALUE",
+        help="override entry keys, e.g. n_steps:256 learning_rate:lin_3e-4",
+    )
+    p.add_argument(
+        "-f",
+        "--log-folder",
+        default=DEFAULT_LOG_FOLDER,
+        metavar="DIR",
+        help="runs go to DIR/ppo/<env id>_<n>, a new n each run",
+    )
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--out", metavar="DIR", help="also write a model directory to DIR")
+    where.add_argument(
+        "--update-shipped",
+        action="store_true",
+        help="also write the model directory to agents/models/<name>, replacing the shipped one",
+    )
+    p.add_argument("-P", "--progress", action="store_true", help="show a progress bar")
+    p.add_argument(
+        "--print-freq",
+        type=_int,
+        default=5_000,
+        metavar="STEPS",
+        help="without --progress, print a progress line every STEPS env steps (0: never)",
+    )
+    p.add_argument("--device", default="cpu", choices=["cpu", "cuda", "auto"], help="torch device")
+    p.add_argument(
+        "--vec-env",
+        default=DEFAULT_VEC_ENV,
+        choices=["dummy", "subproc"],
+        help="vector env class of the training envs",
+    )
+    p.add_argument(
+        "--num-threads", type=_positive_int, default=1, metavar="N", help="torch threads"
+    )
+    p.add_argument(
+        "--eval-freq",
+        type=_int,
+        default=10_000,
+        metavar="N",
+        help="evaluate every N env steps over all envs (<= 0: never)",
+    )
+    p.add_argument(
+        "--eval-episodes",
+        type=_positive_int,
+        default=5,
+        metavar="N",
+        help="episodes per evaluation",
+    )
+    p.add_argument(
+        "--save-freq",
+        type=_int,
+        default=25_000,
+        metavar="N",
+        help="checkpoint (with VecNormalize) every N env steps over all envs (<= 0: never)",
+    )
+    p.add_argument(
+        "--verbose", type=_int, default=0, choices=[0, 1, 2], help="verbosity of SB3 and the zoo"
+    )
+    p.add_argument("--no-progress-bar", action="store_true", help=argparse.SUPPRESS)
+    return p
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = parser()
+    args = p.parse_args(argv)
+    hyperparams = dict(args.hyperparams or [])
+    try:
+        env_id, _ = prepare(args.env, args.conf_file, hyperparams, args.n_timesteps)
+        out = args.out
+        if args.update_shipped:
+            if env_id not in SHIPPED:
+                raise ValueError(f"--update-shipped: no shipped model for {env_id!r}")
+            out = MODEL_DIR / SHIPPED[env_id]
+        elif out is not None and (Path(out) / "model.zip").exists():
+            raise ValueError(f"--out {out!r} already holds a model; choose a new directory")
     except ValueError as exc:
-        parser.error(str(exc))
-    out = train(
-        args.config,
-        args.env_id,
+        p.error(str(exc))
+    run = train(
+        env_id,
+        conf_file=args.conf_file,
+        hyperparams=hyperparams,
         seed=args.seed,
         n_timesteps=args.n_timesteps,
-        out=args.out,
-        log_dir=args.log_dir,
+        log_folder=args.log_folder,
+        out=out,
         device=args.device,
         vec_env=args.vec_env,
         eval_freq=args.eval_freq,
         n_eval_episodes=args.eval_episodes,
         save_freq=args.save_freq,
         max_minutes=args.max_minutes,
-        progress_bar=not args.no_progress_bar,
+        progress=args.progress,
+        print_freq=args.print_freq,
+        num_threads=args.num_threads,
+        verbose=args.verbose,
     )
-    stats = json.loads((out / "train_stats.json").read_text())
+    stats = json.loads((run / "train_stats.json").read_text())
     print(
-        f"saved {out}: {stats['timesteps']} steps in {stats['wall_time_s']} s "
+        f"run {run}: {stats['timesteps']} steps in {stats['wall_time_s']} s "
         f"({stats['env_steps_per_s']} env steps/s)"
+        + (f"; model directory {out}" if out is not None else "")
     )
 
 

@@ -170,6 +170,11 @@ class Renderer:
         """Height in pixels of the text band at the top (0 without ``text_band``)."""
         return min(round(0.8 * self.font_size) + 8, self.height // 3) if self.text_band else 0
 
+    def reset_view(self) -> None:
+        """Fit the view afresh at the next frame (a new episode: a view widened because a body
+        left it in the last one shrinks back)."""
+        self._view_scene = None
+
     def _fit(self, state: State) -> None:
         """Fix the world-to-pixel map for ``state`` (see the class docstring)."""
         if self.world_bounds is not None:

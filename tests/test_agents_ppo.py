@@ -9,6 +9,8 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import gymnasium as gym
@@ -20,9 +22,19 @@ pytest.importorskip("stable_baselines3")
 
 from agents import evaluate as ev
 from agents import train_ppo as tp
+from grasp_env.envs import ENV_ID, ENV_KWARGS, RANDOM_SHAPES_ENV_ID
 
-CONFIG = Path(__file__).resolve().parents[1] / "configs" / "ppo.yml"
+REPO = Path(__file__).resolve().parents[1]
+CONFIG = REPO / "configs" / "ppo.yml"
 ENTRIES = list(tp.load_config(CONFIG))
+#: Tiny PPO settings for training runs in tests (short episodes, small rollouts and network).
+TINY = {
+    "n_steps": 64,
+    "batch_size": 32,
+    "n_epochs": 2,
+    "policy_kwargs": "dict(net_arch=[16])",
+    "env_kwargs": {"reward_grip_weight": 1.0, "max_episode_steps": 16},
+}
 
 
 @pytest.mark.parametrize("name", ENTRIES, ids=ENTRIES)
@@ -35,36 +47,125 @@ def test_config_entry_builds_its_env(name):
     assert entry["n_envs"] >= 1 and entry["n_timesteps"] > 0
 
 
-def test_config_has_the_two_set_ups():
+def test_config_is_keyed_by_the_registered_ids():
+    raw = yaml.safe_load(CONFIG.read_text())
+    assert set(raw) == {ENV_ID, RANDOM_SHAPES_ENV_ID} == set(ENV_KWARGS)
+    assert all("env_id" not in entry for entry in raw.values())  # the zoo's format
     config = tp.load_config(CONFIG)
-    assert config["fig13_fingers"]["env_kwargs"]["scene"] == "fig13"
-    assert not config["fig13_fingers"]["env_kwargs"]["palm_control"]
-    assert config["random_shapes_palm"]["env_kwargs"]["shape_randomizer"]
-    assert config["random_shapes_palm"]["env_kwargs"]["palm_control"]
+    assert {key: entry["env_id"] for key, entry in config.items()} == {k: k for k in raw}
+    # The ids fix the task; the entries only re-weight the reward for training.
+    for entry in config.values():
+        assert set(entry["env_kwargs"]) == {"reward_grip_weight"}
+    ((wrapper, kwargs),) = tp.wrapper_specs(config[RANDOM_SHAPES_ENV_ID])
+    assert wrapper is tp.ApproachShaping and kwargs["touch"] == 0.2
+    assert not tp.wrapper_specs(config[ENV_ID])
+    # Former config names still find their entries (benchmarks.ppo_throughput uses them).
+    assert tp.get_entry(config, "fig13_fingers") is config[ENV_ID]
+    assert tp.get_entry(config, "random_shapes_palm") is config[RANDOM_SHAPES_ENV_ID]
+
+
+def test_shipped_models_keep_their_set_up():
+    for name, env_id in (("fig13_fingers", ENV_ID), ("random_shapes_palm", RANDOM_SHAPES_ENV_ID)):
+        _, norm, loaded, entry = tp.load_agent(tp.MODEL_DIR / name)
+        assert loaded == name and entry["env_id"] == env_id and norm is not None
+        assert entry["env_kwargs"] == {**ENV_KWARGS[env_id], "reward_grip_weight": 1.0}
+    spec = ev.ppo_spec(tp.MODEL_DIR / "random_shapes_palm")
+    assert spec.name == "ppo_random_shapes_palm"
+    assert spec.env_kwargs == {"palm_control": True, "start": "scene"}
+    assert ev.ppo_spec(tp.MODEL_DIR / "fig13_fingers").env_kwargs == {}
+
+
+def test_importing_train_ppo_needs_neither_sb3_nor_the_zoo():
+    code = (
+        "import sys, agents.train_ppo as tp; "
+        "assert tp.ApproachShaping and tp.load_config; "
+        "print(sorted(m for m in ('stable_baselines3', 'rl_zoo3', 'torch') if m in sys.modules))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.strip() == "[]"
+
+
+def _write(path: Path, text: str) -> str:
+    path.write_text(text)
+    return str(path)
 
 
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--env-id", "no_such_entry"], "'no_such_entry' is not in the config"),
-        (["--env-id", "fig13_fingers", "--config", "missing.yml"], "'missing.yml'"),
-        (["--env-id", "fig13_fingers", "--n-timesteps", "-5"], "'-5'"),
-        (["--env-id", "fig13_fingers", "--max-minutes", "nan"], "'nan'"),
+        (["--env", "no_such_entry"], "'no_such_entry' is not in the config"),
+        (["--conf-file", "missing.yml"], "'missing.yml': cannot read it"),
+        (["--n-timesteps", "-5"], "'-5'"),
+        (["--max-minutes", "nan"], "'nan'"),
+        (["--hyperparams", "n_steps"], "expected key:value, got 'n_steps'"),
+        (["--hyperparams", "learning_rate:exp_3"], "learning_rate 'exp_3'"),
+        (["--hyperparams", "policy_kwargs:dict("], "policy_kwargs 'dict('"),
+        (["--out", str(tp.MODEL_DIR / "fig13_fingers")], "already holds a model"),
+        (["--out", "x", "--update-shipped"], "not allowed with argument"),
+        (["--conf-file", "<yaml>FrictionlessGrasp-v0:\n  n_envs: 2\n   bad: [\n"], "(line 3"),
+        (["--conf-file", "<yaml>- a list\n"], "expected a mapping of env ids"),
+        (
+            ["--conf-file", "<yaml>FrictionlessGrasp-v0:\n  n_timesteps: 8\n  learnin_rate: 1\n"],
+            "unknown key(s) learnin_rate",
+        ),
+        (
+            ["--conf-file", "<yaml>FrictionlessGrasp-v0:\n  n_timesteps: 8\n  n_envs: 0\n"],
+            "n_envs must be a positive integer",
+        ),
+        (
+            ["--env", "x", "--conf-file", "<yaml>x:\n  env_id: FrictionlessGrasp-v0\n"],
+            "entry 'x' is in the former format",
+        ),
     ],
-    ids=["unknown-entry", "missing-file", "negative-steps", "nan-minutes"],
+    ids=[
+        "unknown-env",
+        "missing-file",
+        "negative-steps",
+        "nan-minutes",
+        "override-without-colon",
+        "bad-schedule",
+        "bad-expression",
+        "out-holds-a-model",
+        "out-and-update-shipped",
+        "malformed-yaml",
+        "not-a-mapping",
+        "unknown-key",
+        "zero-envs",
+        "former-format",
+    ],
 )
-def test_train_command_names_the_bad_value(argv, message, capsys):
-    with pytest.raises(SystemExit):
+def test_train_command_names_the_bad_value_in_one_line(argv, message, tmp_path, capsys):
+    argv = [
+        _write(tmp_path / "c.yml", a[len("<yaml>") :]) if a.startswith("<yaml>") else a
+        for a in argv
+    ]
+    argv += ["-f", str(tmp_path / "runs")]
+    with pytest.raises(SystemExit) as exit_info:
         tp.main(argv)
-    assert message in capsys.readouterr().err
+    assert exit_info.value.code == 2
+    out, err = capsys.readouterr()
+    assert message in err and not out
+    assert err.count("\n") == 1 and err.startswith("python -m agents.train_ppo: error:")
+    assert not (tmp_path / "runs").exists()  # caught before any work
+
+
+def test_help_shows_the_defaults(capsys):
+    with pytest.raises(SystemExit):
+        tp.main(["--help"])
+    out = " ".join(capsys.readouterr().out.split())  # wrapping depends on the terminal
+    assert "(default: FrictionlessGrasp-v0)" in out and "(default: configs/ppo.yml)" in out
+    assert "(default: runs)" in out and "(default: 10000)" in out
+    assert "``" not in out and "(default: None)" not in out
 
 
 def test_bad_env_kwarg_is_named(tmp_path):
     config = tmp_path / "bad.yml"
-    entry = {"env_id": "FrictionlessGrasp-v0", "env_kwargs": {"start": "sideways"}}
-    config.write_text(yaml.safe_dump({"bad": entry}))
-    with pytest.raises(ValueError, match=r"entry 'bad'.*sideways"):
-        tp.check_entry("bad", tp.get_entry(tp.load_config(config), "bad"))
+    entry = {"n_timesteps": 8, "env_kwargs": {"start": "sideways"}}
+    config.write_text(yaml.safe_dump({ENV_ID: entry}))
+    with pytest.raises(ValueError, match=r"entry 'FrictionlessGrasp-v0'.*sideways"):
+        tp.check_entry(ENV_ID, tp.get_entry(tp.load_config(config), ENV_ID))
 
 
 def test_unknown_wrapper_is_named():
@@ -75,26 +176,22 @@ def test_unknown_wrapper_is_named():
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory) -> Path:
     """A PPO model trained for 256 steps on short fig13 episodes (the shipped entry's
-    settings with tiny rollouts)."""
+    settings with tiny rollouts), written to a model directory ``tiny``."""
+    pytest.importorskip("rl_zoo3")
     tmp = tmp_path_factory.mktemp("ppo")
-    entry = dict(tp.load_config(CONFIG)["fig13_fingers"])
-    entry["env_kwargs"] = {**entry["env_kwargs"], "max_episode_steps": 16}
-    entry.update(n_steps=64, batch_size=32, n_epochs=2)
-    entry["policy_kwargs"] = "dict(net_arch=[16])"
-    config = tmp / "tiny.yml"
-    config.write_text(yaml.safe_dump({"tiny": entry}))
-    return tp.train(
-        config,
-        "tiny",
+    tp.train(
+        ENV_ID,
+        conf_file=CONFIG,
+        hyperparams=TINY,
         n_timesteps=256,
-        out=tmp / "model",
-        log_dir=tmp / "logs",
-        vec_env="dummy",
+        log_folder=tmp / "runs",
+        out=tmp / "tiny",
         eval_freq=128,
         n_eval_episodes=1,
         save_freq=128,
-        progress_bar=False,
+        print_freq=0,
     )
+    return tmp / "tiny"
 
 
 def test_tiny_training_saves_and_reloads(trained):
@@ -102,20 +199,88 @@ def test_tiny_training_saves_and_reloads(trained):
         assert (trained / name).is_file(), name
     stats = json.loads((trained / "train_stats.json").read_text())
     assert stats["timesteps"] == 256 and stats["env_steps_per_s"] > 0
-    logs = trained.parent / "logs"
-    assert list((logs / "checkpoints").glob("*.zip"))
-    assert (logs / "eval" / "evaluations.npz").is_file()
-    assert list((logs / "tb").iterdir())
-    header = (logs / "monitor" / "0.monitor.csv").read_text().splitlines()[1].split(",")
-    assert {"is_success", "ep_reward_lift", "ep_reward_grip"} <= set(header)
+    run = Path(stats["run"])
+    assert run == trained.parent / "runs" / "ppo" / f"{ENV_ID}_1"
+    assert (run / "train_stats.json").is_file() and (run / f"{ENV_ID}.zip").is_file()
+    assert list(run.glob("rl_model_*_steps.zip")) and list(run.glob("rl_model_vecnormalize_*"))
+    assert (run / "evaluations.npz").is_file()
+    header = (run / "0.monitor.csv").read_text().splitlines()[1].split(",")
+    assert "is_success" in header
+    config = yaml.safe_load((trained / "config.yml").read_text())
+    assert list(config) == [ENV_ID] and config[ENV_ID]["n_timesteps"] == 256
+    assert config[ENV_ID]["n_steps"] == 64  # the overrides as used
 
-    model, norm, name, entry = tp.load_agent(trained)
-    assert name == "tiny" and norm is not None and not norm.training
-    env = tp.make_env(entry["env_id"], entry["env_kwargs"])
-    obs, _ = env.reset(seed=0)
-    action, _ = model.predict(norm.normalize_obs(obs), deterministic=True)
-    assert env.action_space.contains(action.astype(np.float32))
-    env.close()
+    # RewardTermsCallback logged the episode sums of the reward terms.
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    (events,) = (run / "tb").iterdir()
+    tags = EventAccumulator(str(events)).Reload().Tags()["scalars"]
+    assert {"rollout/ep_reward_lift_mean", "rollout/ep_reward_grip_mean"} <= set(tags)
+
+    for directory, expected in ((trained, "tiny"), (run, run.name)):
+        model, norm, name, entry = tp.load_agent(directory)
+        assert name == expected and norm is not None and not norm.training
+        assert entry["env_id"] == ENV_ID and entry["env_kwargs"]["max_episode_steps"] == 16
+        env = tp.make_env(entry["env_id"], entry["env_kwargs"])
+        obs, _ = env.reset(seed=0)
+        action, _ = model.predict(norm.normalize_obs(obs), deterministic=True)
+        assert env.action_space.contains(action.astype(np.float32))
+        env.close()
+
+
+def _tiny_argv(tmp_path: Path, *extra: str) -> list[str]:
+    params = [f"{k}:{v!r}" if not isinstance(v, str) else f"{k}:{v}" for k, v in TINY.items()]
+    return [
+        "--conf-file",
+        str(CONFIG),
+        "-n",
+        "128",
+        "--eval-freq",
+        "0",
+        "--save-freq",
+        "0",
+        "--print-freq",
+        "64",
+        "--hyperparams",
+        *params,
+        *extra,
+    ]
+
+
+def _shipped() -> dict[str, bytes]:
+    return {str(p): p.read_bytes() for p in sorted(tp.MODEL_DIR.glob("*/*"))}
+
+
+def test_training_writes_to_runs_and_leaves_the_shipped_models(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("rl_zoo3")
+    shipped = _shipped()
+    monkeypatch.chdir(tmp_path)
+    tp.main(_tiny_argv(tmp_path))
+    out = capsys.readouterr().out
+    run = tmp_path / "runs" / "ppo" / f"{ENV_ID}_1"
+    assert (run / f"{ENV_ID}.zip").is_file() and (run / ENV_ID / "vecnormalize.pkl").is_file()
+    assert "64/128 steps (50%)" in out and "128/128 steps (100%)" in out  # progress lines
+    assert f"run runs/ppo/{ENV_ID}_1: 128 steps" in out
+    assert _shipped() == shipped
+    # A second run gets a folder of its own.
+    tp.main(_tiny_argv(tmp_path, "--print-freq", "0"))
+    assert (tmp_path / "runs" / "ppo" / f"{ENV_ID}_2" / f"{ENV_ID}.zip").is_file()
+    assert (run / f"{ENV_ID}.zip").is_file() and _shipped() == shipped
+
+
+def test_update_shipped_writes_the_model_directory(tmp_path, monkeypatch):
+    pytest.importorskip("rl_zoo3")
+    models = tmp_path / "models"
+    monkeypatch.setattr(tp, "MODEL_DIR", models)
+    tp.main(_tiny_argv(tmp_path, "-f", str(tmp_path / "runs"), "--update-shipped"))
+    _, norm, name, entry = tp.load_agent(models / "fig13_fingers")
+    assert name == "fig13_fingers" and entry["env_id"] == ENV_ID and norm is not None
+    assert sorted(p.name for p in (models / "fig13_fingers").iterdir()) == [
+        "config.yml",
+        "model.zip",
+        "train_stats.json",
+        "vecnormalize.pkl",
+    ]
 
 
 def test_evaluation_writes_all_outputs(trained, tmp_path, capsys):
@@ -176,7 +341,7 @@ def test_bootstrap_interval_brackets_the_mean():
 
 
 def test_approach_shaping_is_potential_based():
-    entry = tp.get_entry(tp.load_config(CONFIG), "random_shapes_palm")
+    entry = tp.get_entry(tp.load_config(CONFIG), RANDOM_SHAPES_ENV_ID)
     ((cls, kwargs),) = tp.wrapper_specs(entry)
     env = cls(gym.make(entry["env_id"], **entry["env_kwargs"]), **kwargs)
 

@@ -85,6 +85,72 @@ def test_registered_with_string_entry_point_and_time_limit():
     env.close()
 
 
+#: Every registered id and the ``gymnasium.make`` kwargs its spec holds.
+REGISTERED = {
+    "FrictionlessGrasp-v0": {},
+    "FrictionlessGraspRandomShapes-v0": {
+        "scene": "fig13",
+        "shape_randomizer": True,
+        "palm_control": True,
+        "start": "scene",
+    },
+}
+
+
+def test_every_set_up_has_its_id():
+    from grasp_env.envs import ENV_KWARGS, RANDOM_SHAPES_ENV_ID
+
+    assert {k: dict(v) for k, v in ENV_KWARGS.items()} == REGISTERED
+    assert RANDOM_SHAPES_ENV_ID == "FrictionlessGraspRandomShapes-v0"
+    # The paper's id keeps the env's defaults: fig13, palm fixed, start at the scene.
+    defaults = inspect.signature(FrictionlessGraspEnv).parameters
+    assert defaults["scene"].default == "fig13" and defaults["palm_control"].default is False
+    assert defaults["start"].default == "scene" and defaults["shape_randomizer"].default is None
+
+
+@pytest.mark.parametrize("env_id", REGISTERED, ids=REGISTERED)
+def test_registered_ids_share_entry_point_wrappers_and_threshold(env_id):
+    spec = gym.spec(env_id)
+    main = gym.spec(ENV_ID)
+    assert isinstance(spec.entry_point, str) and spec.entry_point == main.entry_point
+    assert spec.kwargs == REGISTERED[env_id]
+    assert spec.max_episode_steps == 200 and spec.reward_threshold == REWARD_THRESHOLD
+    assert [w.entry_point for w in spec.additional_wrappers] == [WRAPPER_ENTRY_POINT]
+    env = gym.make(f"grasp_env:{env_id}")
+    assert type(env).__name__ == "RestoreOnError" and env.spec.kwargs == REGISTERED[env_id]
+    unwrapped = env.unwrapped
+    palm = REGISTERED[env_id].get("palm_control", False)
+    assert unwrapped.action_space.shape == ((5,) if palm else (2,))
+    assert (unwrapped.shape_ranges is not None) == ("shape_randomizer" in REGISTERED[env_id])
+    assert unwrapped.scenes[0].name == "fig13" and unwrapped.start == "scene"
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", REGISTERED, ids=REGISTERED)
+def test_registered_ids_pass_gymnasium_check_env(env_id):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(env_id).unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env, skip_render_check=True)
+    env.close()
+
+
+def test_make_kwargs_override_the_registered_ones():
+    env = gym.make("FrictionlessGraspRandomShapes-v0", palm_control=False, reward_grip_weight=1.0)
+    assert env.action_space.shape == (2,) and env.unwrapped.shape_ranges is not None
+    assert env.unwrapped.reward_weights["grip"] == 1.0
+    env.close()
+    # Different random shapes on different seeds, the same on the same seed.
+    env = gym.make("FrictionlessGraspRandomShapes-v0")
+    vertices = slice(13, 13 + 2 * 12)
+    first, second = (env.reset(seed=s)[0][vertices] for s in (0, 1))
+    assert not np.array_equal(first, second)
+    assert np.array_equal(env.reset(seed=0)[0][vertices], first)
+    env.close()
+
+
 CHECK_ENV_CASES = {
     "fingers-only": {},
     "palm-control": {"palm_control": True},

@@ -308,3 +308,19 @@ def test_viz_extra_installs_moviepy():
     text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
     (viz,) = [line for line in text.splitlines() if line.startswith("viz = ")]
     assert '"moviepy' in viz
+
+
+def test_view_is_fitted_afresh_at_each_reset() -> None:
+    """A view widened because the palm left it shrinks back at the next reset: the same seed
+    renders the same first frame."""
+    import gymnasium as gym
+
+    env = gym.make("FrictionlessGrasp-v0", palm_control=True, render_mode="rgb_array")
+    env.reset(seed=0)
+    first = env.render()
+    for _ in range(40):  # drive the palm up and sideways, out of the fitted view
+        env.step(np.array([0.0, 0.0, 1.0, 1.0, 0.0], dtype=np.float32))
+    assert env.render().shape == first.shape
+    env.reset(seed=0)
+    np.testing.assert_array_equal(env.render(), first)
+    env.close()

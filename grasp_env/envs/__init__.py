@@ -1,21 +1,41 @@
-"""Gymnasium environments of grasp_env: ``FrictionlessGrasp-v0``.
+"""Gymnasium environments of grasp_env: one id per set-up people train on.
 
-:func:`register_envs` registers them with a string entry point, so registering imports
-neither the environment module nor pygame. Importing this package (which ``import grasp_env``
-does) calls it: ``gymnasium.make("grasp_env:FrictionlessGrasp-v0")`` and spawned vector-env
-workers rely on that. ``gymnasium.make`` puts :class:`RestoreOnError
-<grasp_env.envs.frictionless_grasp.RestoreOnError>` outside its standard wrappers, so that a
-refused ``reset`` or ``step`` leaves them as they were.
+* ``FrictionlessGrasp-v0``: the paper's task (section 4, Fig. 13): scene ``fig13``, the
+  palm fixed where the scene puts it, two finger actions (the env's defaults).
+* ``FrictionlessGraspRandomShapes-v0``: a new random convex polygon at every reset (default
+  ranges) in fig13's hand set-up, the hand starting where the scene puts it, palm and
+  fingers under control (five actions).
+
+Both use the same class with the env's default reward weights; ``gymnasium.make`` keyword
+arguments override the registered ones. :func:`register_envs` registers them with a string
+entry point, so registering imports neither the environment module nor pygame. Importing this
+package (which ``import grasp_env`` does) calls it: ``gymnasium.make("grasp_env:
+FrictionlessGrasp-v0")`` and spawned vector-env workers rely on that. ``gymnasium.make``
+puts :class:`RestoreOnError <grasp_env.envs.frictionless_grasp.RestoreOnError>` outside its
+standard wrappers, so that a refused ``reset`` or ``step`` leaves them as they were.
 """
 
 from __future__ import annotations
 
-#: Id, entry point and default episode length of the registered environment.
+from types import MappingProxyType
+
+#: Id of the paper's set-up, entry point and default episode length of every id.
 ENV_ID = "FrictionlessGrasp-v0"
 ENTRY_POINT = "grasp_env.envs.frictionless_grasp:FrictionlessGraspEnv"
 MAX_EPISODE_STEPS = 200
-#: The spec's ``reward_threshold``: with the default reward weights, an episode return of at
-#: least this means the episode reached a grasp. It is the form-closure bonus
+#: Id of the randomized-shapes set-up with palm control.
+RANDOM_SHAPES_ENV_ID = "FrictionlessGraspRandomShapes-v0"
+#: The registered ids and their ``gymnasium.make`` keyword arguments (read-only).
+ENV_KWARGS = MappingProxyType(
+    {
+        ENV_ID: MappingProxyType({}),
+        RANDOM_SHAPES_ENV_ID: MappingProxyType(
+            {"scene": "fig13", "shape_randomizer": True, "palm_control": True, "start": "scene"}
+        ),
+    }
+)
+#: The spec's ``reward_threshold`` (every id): with the default reward weights, an episode
+#: return of at least this means the episode reached a grasp. It is the form-closure bonus
 #: (``reward_form_closure_weight``, 10), paid once, at the first step in form closure with the
 #: object off the support. Without the bonus a return stays well below 10: the grip term is
 #: paid only in form closure off the support, and the lift shaping sums to about
@@ -30,17 +50,19 @@ WRAPPER_ENTRY_POINT = "grasp_env.envs.frictionless_grasp:RestoreOnError"
 
 
 def register_envs() -> None:
-    """Register ``FrictionlessGrasp-v0`` with gymnasium (idempotent)."""
+    """Register every id of :data:`ENV_KWARGS` with gymnasium (idempotent)."""
     from gymnasium.envs.registration import WrapperSpec, register, registry
 
-    if ENV_ID not in registry:
-        register(
-            id=ENV_ID,
-            entry_point=ENTRY_POINT,
-            max_episode_steps=MAX_EPISODE_STEPS,
-            reward_threshold=REWARD_THRESHOLD,
-            additional_wrappers=(WrapperSpec("RestoreOnError", WRAPPER_ENTRY_POINT, {}),),
-        )
+    for env_id, kwargs in ENV_KWARGS.items():
+        if env_id not in registry:
+            register(
+                id=env_id,
+                entry_point=ENTRY_POINT,
+                max_episode_steps=MAX_EPISODE_STEPS,
+                reward_threshold=REWARD_THRESHOLD,
+                additional_wrappers=(WrapperSpec("RestoreOnError", WRAPPER_ENTRY_POINT, {}),),
+                kwargs=dict(kwargs),
+            )
 
 
 register_envs()
@@ -48,7 +70,9 @@ register_envs()
 __all__ = [
     "ENTRY_POINT",
     "ENV_ID",
+    "ENV_KWARGS",
     "MAX_EPISODE_STEPS",
+    "RANDOM_SHAPES_ENV_ID",
     "REWARD_THRESHOLD",
     "WRAPPER_ENTRY_POINT",
     "register_envs",

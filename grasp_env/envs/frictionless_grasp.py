@@ -232,6 +232,16 @@ class FrictionlessGraspEnv(gym.Env):
     * v0: initial version. ``info["grip_force"]`` is a plain float, ``inf`` outside form
       closure; the spec has ``reward_threshold=10``; bundled scene names always mean the
       bundled scenes.
+
+    Registered ids (``grasp_env.envs.ENV_KWARGS``), both ``max_episode_steps=200`` and
+    ``reward_threshold=10`` with the default reward weights; keyword arguments of
+    ``gymnasium.make`` override the registered ones:
+
+    * ``FrictionlessGrasp-v0``: the defaults, the paper's set-up (scene ``fig13``, palm fixed,
+      two finger actions, ``start="scene"``);
+    * ``FrictionlessGraspRandomShapes-v0``: ``scene="fig13", shape_randomizer=True,
+      palm_control=True, start="scene"`` (a new random shape at every reset in fig13's hand
+      set-up, five actions).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
@@ -458,6 +468,8 @@ class FrictionlessGraspEnv(gym.Env):
         info = self._info(state, dropped=False, reward_info=dict.fromkeys(_REWARD_KEYS, 0.0))
         if error is not None:
             info["sim_error"] = error
+        if self._renderer is not None:
+            self._renderer.reset_view()
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), info
