@@ -135,12 +135,13 @@ def main(argv: list[str] | None = None) -> int:
         description="Plan a frictionless enveloping grasp with the paper's three-phase planner "
         "and write a filmstrip, a Fig. 14-style branch plot, a GIF and the plan as JSON.",
         epilog=f"bundled scenes: {', '.join(bundled_scenes())}",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--scene", required=True, help="bundled scene name or YAML path")
-    parser.add_argument("--out", required=True, type=Path, help="output directory")
     parser.add_argument(
-        "--dq", type=float, default=0.02, help="finger increment of lifting (rad, default 0.02)"
+        "--out", type=Path, help="output directory (default: runs/scripted/<scene name>)"
     )
+    parser.add_argument("--dq", type=float, default=0.02, help="finger increment of lifting (rad)")
     args = parser.parse_args(argv)
     if not (math.isfinite(args.dq) and 0 < args.dq <= 0.5):
         parser.error(f"--dq must be in (0, 0.5], got {args.dq!r}")
@@ -148,6 +149,8 @@ def main(argv: list[str] | None = None) -> int:
         scene = load_scene(args.scene)
     except (ValueError, OSError) as exc:
         parser.error(f"--scene {args.scene!r}: {exc}")
+    if args.out is None:
+        args.out = Path("runs") / "scripted" / scene.name
     if args.out.exists() and not args.out.is_dir():
         parser.error(f"--out {str(args.out)!r} exists and is not a directory")
     args.out.mkdir(parents=True, exist_ok=True)

@@ -44,14 +44,24 @@ QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks",
+        description=__doc__.splitlines()[0].replace("``", ""),
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     ap.add_argument("--quick", action="store_true", help="small budgets (about a minute)")
-    ap.add_argument("--only", nargs="+", choices=list(SUITE))
+    ap.add_argument(
+        "--only",
+        nargs="+",
+        choices=list(SUITE),
+        metavar="PIECE",
+        help=f"run only these pieces: {', '.join(SUITE)}",
+    )
     ap.add_argument(
         "--out",
         type=Path,
         default=OUT,
-        help="results folder (default runs/benchmarks; benchmarks/results: the committed one)",
+        help="results folder (benchmarks/results: the committed one)",
     )
     args = ap.parse_args(argv)
     if problem := out_dir_problem(args.out):

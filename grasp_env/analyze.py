@@ -1,4 +1,4 @@
-"""Command-line summary of a scene's grasp analysis: ``python -m grasp_env.analyze <scene>``.
+"""Command-line summary of a scene's grasp analysis: ``python -m grasp_env.analyze --scene NAME``.
 
 Prints the object's mass, weight, area and width (section 3.2), its left and right
 tippability regions (section 2.4) and the closure status of the scene's initial state
@@ -132,8 +132,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="python -m grasp_env.analyze",
         description="Tippability, width and initial closure status of a grasp scene.",
         epilog=f"bundled scenes: {', '.join(grasp_env.bundled_scenes())}",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    parser.add_argument("scene", help="a bundled scene name or a path to a scene YAML file")
+    parser.add_argument(
+        "--scene", required=True, help="a bundled scene name or a path to a scene YAML file"
+    )
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse has printed the usage or the help

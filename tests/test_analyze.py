@@ -23,7 +23,7 @@ def _field(out: str, label: str) -> str:
 
 @pytest.mark.parametrize("name", SCENES)
 def test_every_bundled_scene(name, capsys):
-    assert main([name]) == 0
+    assert main(["--scene", name]) == 0
     out, err = capsys.readouterr()
     assert err == ""
     scene = grasp_env.load_scene(name)
@@ -61,7 +61,7 @@ def _region_block(out: str, side: str) -> list[str]:
 
 
 def test_flat_trapezoid_regions_are_empty(capsys):
-    assert main(["flat_trapezoid"]) == 0
+    assert main(["--scene", "flat_trapezoid"]) == 0
     out = capsys.readouterr().out
     assert _region_block(out, "left") == ["empty"]
     assert _region_block(out, "right") == ["empty"]
@@ -71,7 +71,7 @@ def test_square_regions_readable(capsys):
     """The square (vertices (-.15, 0), (.15, 0), (.15, .3), (-.15, .3)): its right side (edge
     1) is in the left region, its left side (edge 3) in the right region, whole edges; the top
     corners carry vertex subregions with normal angles in degrees."""
-    assert main(["square"]) == 0
+    assert main(["--scene", "square"]) == 0
     out = capsys.readouterr().out
     left, right = _region_block(out, "left"), _region_block(out, "right")
     assert "edge 1: t in (0, 1), from (0.15, 0) to (0.15, 0.3)" in left
@@ -93,7 +93,7 @@ def test_square_regions_readable(capsys):
     ids=["bad_name", "missing_path"],
 )
 def test_bad_scene_exits_2(arg, needle, capsys):
-    assert main([arg]) == 2
+    assert main(["--scene", arg]) == 2
     out, err = capsys.readouterr()
     assert out == ""
     assert err.startswith("error: ") and needle in err
@@ -104,14 +104,14 @@ def test_invalid_scene_file_names_field(tmp_path, capsys):
     text = (grasp_env.scene.SCENES_DIR / "square.yaml").read_text()
     bad = tmp_path / "bad.yaml"
     bad.write_text(text.replace("width: 1.0", "width: -1.0"))
-    assert main([str(bad)]) == 2
+    assert main(["--scene", str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "palm.width" in err and "-1.0" in err
 
 
 def test_scene_path_accepted(capsys):
     path = grasp_env.scene.SCENES_DIR / "triangle.yaml"
-    assert main([str(path)]) == 0
+    assert main(["--scene", str(path)]) == 0
     out = capsys.readouterr().out
     assert f"source: {path}" in out
 
@@ -121,7 +121,7 @@ def test_simulator_failure_is_reported(monkeypatch, capsys):
         raise grasp_env.SimulationError("solver gave up")
 
     monkeypatch.setattr(grasp_env.Simulator, "reset", broken_reset)
-    assert main(["square"]) == 0
+    assert main(["--scene", "square"]) == 0
     out = capsys.readouterr().out
     assert "error: the simulator failed: SimulationError: solver gave up" in out
     assert "form closure" not in out
@@ -135,7 +135,7 @@ def test_missing_argument_exits_2(capsys):
 def test_module_entry_point():
     """``python -m grasp_env.analyze`` sets the exit status and prints no traceback."""
     bad = subprocess.run(
-        [sys.executable, "-m", "grasp_env.analyze", "nope"],
+        [sys.executable, "-m", "grasp_env.analyze", "--scene", "nope"],
         capture_output=True,
         text=True,
         timeout=60,
