@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import os
 import sys
@@ -151,6 +152,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--scene {args.scene!r}: {exc}")
     if args.out is None:
         args.out = Path("runs") / "scripted" / scene.name
+    logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
+    print(f"planning {scene.name} ...", file=sys.stderr)
     if args.out.exists() and not args.out.is_dir():
         parser.error(f"--out {str(args.out)!r} exists and is not a directory")
     args.out.mkdir(parents=True, exist_ok=True)

@@ -29,6 +29,7 @@ does. Phases:
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -45,6 +46,9 @@ from grasp_env.simulator import SimulationError, Simulator
 from grasp_env.state import State
 from grasp_env.tippability import tippability_regions
 from grasp_env.width import object_width
+
+#: Progress of a plan (placements tried, exploration, grip adjustment) at INFO level.
+log = logging.getLogger(__name__)
 
 PHASES = ("pre-liftoff", "lifting", "grip adjustment")
 
@@ -952,11 +956,13 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
     failed = []
     for state, placement in _placements(sim, centred):  # re-place the hand when stuck
         tries += 1
+        log.info("lifting from the %s placement", placement)
         plan.steps = [PlanStep("pre-liftoff", state, _grip_if_closed(state), placement)]
         plan.placement = placement
         state = lift(sim, state, plan, dq)
         if plan.success:
             break
+        log.info("  %s", plan.message)
         failed.append(f"from the {placement} placement: {plan.message}")
     if tries == 0:
         plan.steps = [PlanStep("pre-liftoff", centred, math.nan, "not tippable")]
@@ -964,6 +970,7 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         plan.message = "no tipping placement: squeezing the centred hand does not move the object"
         return
     if not plan.success and explore_moves > 0:
+        log.info("exploratory lifting with palm motion (up to %d moves)", explore_moves)
         plan.steps = [PlanStep("pre-liftoff", centred, _grip_if_closed(centred), "centred")]
         plan.placement = "centred, exploratory lifting"
         state, _ = explore(sim, plan, ([centred], []), explore_moves)
@@ -975,6 +982,7 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
     if failed:
         plan.message += f" (after re-placement; {'; '.join(failed)})"
     if adjust:
+        log.info("form closure at step %d; grip adjustment", len(plan.steps) - 1)
         adjust_grip(sim, state, plan)
 
 
