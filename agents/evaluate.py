@@ -1,6 +1,7 @@
 """Compare the scripted planner, trained PPO agents and a random policy on fixed seeds.
 
-    python -m agents.evaluate [--models DIR ...] [--episodes N] [--out DIR] [--workers 2]
+    python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
+        [--out DIR] [--workers 2]
 
 Suites: ``bundled`` (every bundled scene, ``--bundled-episodes`` seeds each) and
 ``heldout`` (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds
@@ -19,7 +20,7 @@ import itertools
 import math
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -57,7 +58,8 @@ BOOTSTRAP_SAMPLES = 2000
 # ---------------------------------------------------------------------- policies
 @dataclass(frozen=True)
 class PolicySpec:
-    """A policy to evaluate: ``kind`` is "scripted", "random" or "ppo" (with ``model_dir``)."""
+    """A policy to evaluate: ``kind`` is "scripted", "random", "ppo" (with ``model_dir``) or
+    "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``)."""
 
     name: str
     kind: str
@@ -75,6 +77,20 @@ def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
         if k not in SUITE_KEYS and not k.startswith("reward_")  # one return for all policies
     }
     return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir))
+
+
+def rllib_spec(path: str | os.PathLike) -> PolicySpec:
+    """The spec of an ``agents.train_rllib`` run directory or checkpoint: the set-up of the
+    env id it trained on (the id's registered kwargs and the config's, from the config saved
+    beside the checkpoint), less the suite's keys and reward weights as in :func:`ppo_spec`."""
+    from agents.rllib_policy import load_run
+
+    checkpoint, env_id, entry = load_run(path)
+    set_up = {**gym.spec(env_id).kwargs, **(entry.get("env_kwargs") or {})}
+    kwargs = {
+        k: v for k, v in set_up.items() if k not in SUITE_KEYS and not k.startswith("reward_")
+    }
+    return PolicySpec(f"rllib_{env_id}", "rllib", kwargs, str(checkpoint))
 
 
 def make_policy(spec: PolicySpec, env: gym.Env) -> tuple[Callable, Callable]:
@@ -95,6 +111,8 @@ def make_policy(spec: PolicySpec, env: gym.Env) -> tuple[Callable, Callable]:
             return state["rng"].uniform(box.low, box.high).astype(np.float32)
 
         return reset, act
+    if spec.kind == "rllib":
+        return (lambda obs, info, seed: None), _load_rllib(spec.model_dir).act
     model, norm, _, _ = _load_agent(spec.model_dir)
 
     def act(obs):
@@ -105,6 +123,13 @@ def make_policy(spec: PolicySpec, env: gym.Env) -> tuple[Callable, Callable]:
 
 
 _load_agent = functools.cache(load_agent)  # once per model and process
+
+
+@functools.cache
+def _load_rllib(checkpoint: str):
+    from agents.rllib_policy import RLlibPolicy
+
+    return RLlibPolicy(checkpoint)
 
 
 # ---------------------------------------------------------------------- episodes
@@ -327,8 +352,10 @@ def write_gif(path: Path, frames: list[np.ndarray], fps: int) -> None:
 
 
 # ---------------------------------------------------------------------- main
-def default_policies(model_dirs: list[str] | None) -> list[PolicySpec]:
-    """Scripted (when ``agents.scripted`` exists), the models, random."""
+def default_policies(
+    model_dirs: list[str] | None, rllib_checkpoints: Sequence[str] = ()
+) -> list[PolicySpec]:
+    """Scripted (when ``agents.scripted`` exists), the models, the RLlib checkpoints, random."""
     if model_dirs is None:
         model_dirs = [str(p.parent) for p in sorted(MODEL_DIR.glob("*/model.zip"))]
     specs = []
@@ -339,6 +366,7 @@ def default_policies(model_dirs: list[str] | None) -> list[PolicySpec]:
     else:
         specs.append(PolicySpec("scripted", "scripted", SCRIPTED_KWARGS))
     specs += [ppo_spec(d) for d in model_dirs]
+    specs += [rllib_spec(c) for c in rllib_checkpoints]
     specs.append(PolicySpec("random", "random", RANDOM_KWARGS))
     return specs
 
@@ -414,6 +442,14 @@ def _positive_int(text: str) -> int:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__)
     parser.add_argument("--models", nargs="*", help="model directories (default: agents/models/*)")
+    parser.add_argument(
+        "--rllib-checkpoint",
+        nargs="+",
+        action="extend",
+        default=[],
+        metavar="PATH",
+        help="agents.train_rllib run directories or their checkpoint/ (needs ray[rllib])",
+    )
     parser.add_argument("--episodes", type=_positive_int, default=20, help="held-out shapes")
     parser.add_argument("--bundled-episodes", type=_positive_int, default=1, help="per scene")
     parser.add_argument("--scenes", nargs="+", help="bundled scenes (default: all)")
@@ -423,7 +459,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--no-scripted", action="store_true", help="leave the planner out")
     args = parser.parse_args(argv)
     try:
-        specs = default_policies(args.models)
+        specs = default_policies(args.models, args.rllib_checkpoint)
     except ValueError as exc:
         parser.error(str(exc))
     if args.no_scripted:

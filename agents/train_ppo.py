@@ -125,8 +125,8 @@ def load_config(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
     """Read a hyperparameter file: ``{key: entry}``, each entry with its ``env_id``.
 
     In rl-baselines3-zoo's format a key is an env id; an entry that has an ``env_id`` of its
-    own (the former scheme, still used by ``configs/rllib_ppo.yml``) is keyed by a config
-    name. Fails with a one-line message naming the file and the bad part.
+    own (the former scheme) is keyed by a config name. Fails with a one-line message naming
+    the file and the bad part.
     """
     config = _read_yaml(path, "config file")
     if not isinstance(config, dict) or not config:
