@@ -34,6 +34,7 @@ import numpy as np
 
 import grasp_env
 from agents.train_ppo import MODEL_DIR, load_agent
+from grasp_env.cli import HelpFormatter
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 
 #: First seed of the held-out shapes. Training seeds its envs with ``seed + rank`` and its
@@ -440,7 +441,15 @@ def _positive_int(text: str) -> int:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.evaluate",
+        description="Compare the scripted planner, trained agents and a random policy on the "
+        "same scenes and seeds: every bundled scene (suite 'bundled') and held-out random shapes "
+        "(suite 'heldout', seeds training never uses). Writes episodes.csv, summary.csv, "
+        "summary.md (also printed), summary.png and one GIF per policy into --out; "
+        "docs/training.md explains the metrics.",
+        formatter_class=HelpFormatter,
+    )
     parser.add_argument("--models", nargs="*", help="model directories (default: agents/models/*)")
     parser.add_argument(
         "--rllib-checkpoint",
@@ -452,8 +461,10 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument("--episodes", type=_positive_int, default=20, help="held-out shapes")
     parser.add_argument("--bundled-episodes", type=_positive_int, default=1, help="per scene")
-    parser.add_argument("--scenes", nargs="+", help="bundled scenes (default: all)")
-    parser.add_argument("--max-steps", type=_positive_int, help="episode length (default 200)")
+    parser.add_argument(
+        "--scene", "--scenes", dest="scenes", nargs="+", help="bundled scenes (default: all)"
+    )
+    parser.add_argument("--max-steps", type=_positive_int, help="episode length (the env's: 200)")
     parser.add_argument("--workers", type=_positive_int, default=1, help="processes")
     parser.add_argument("--out", default="runs/evaluation", help="output directory")
     parser.add_argument("--no-scripted", action="store_true", help="leave the planner out")

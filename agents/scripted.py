@@ -46,6 +46,7 @@ import numpy as np
 from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
 from grasp_env import mechanics as mech
 from grasp_env import planner
+from grasp_env.cli import HelpFormatter
 from grasp_env.errors import SolverError
 from grasp_env.scene import bundled_scenes, load_scene
 from grasp_env.simulator import SimulationError, Simulator
@@ -136,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
         description="Plan a frictionless enveloping grasp with the paper's three-phase planner "
         "and write a filmstrip, a Fig. 14-style branch plot, a GIF and the plan as JSON.",
         epilog=f"bundled scenes: {', '.join(bundled_scenes())}",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     parser.add_argument("--scene", required=True, help="bundled scene name or YAML path")
     parser.add_argument(

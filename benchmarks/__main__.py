@@ -27,6 +27,7 @@ from benchmarks import (
     work_precision,
 )
 from benchmarks.common import OUT, headless, out_dir_problem
+from grasp_env.cli import HelpFormatter
 
 SUITE = {
     "throughput": lambda quick, out: throughput.run(quick, out / "throughput.md"),
@@ -47,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m benchmarks",
         description=__doc__.splitlines()[0].replace("``", ""),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     ap.add_argument("--quick", action="store_true", help="small budgets (about a minute)")
     ap.add_argument(

@@ -23,6 +23,7 @@ import numpy as np
 
 import grasp_env
 from grasp_env import geometry as geo
+from grasp_env.cli import HelpFormatter
 from grasp_env.errors import SceneError
 from grasp_env.scene import Scene
 from grasp_env.state import State
@@ -132,7 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="python -m grasp_env.analyze",
         description="Tippability, width and initial closure status of a grasp scene.",
         epilog=f"bundled scenes: {', '.join(grasp_env.bundled_scenes())}",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     parser.add_argument(
         "--scene", required=True, help="a bundled scene name or a path to a scene YAML file"
