@@ -29,7 +29,8 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
     """Contacts by the documented rules, from the placement's world polygons and normals:
     ``|gap| <= tol``, the projection on the edge widened by ``tol`` at both ends, both of the
     vertex's neighbours on its side of the edge's line up to ``max(4 tol, 1e-7 |d|)``, not
-    excluded, and no earlier kept contact with the same point (``2 tol``) and normal;
+    excluded, and no earlier kept contact of the same body with the same point (``2 tol``)
+    and normal;
     edge contacts (support, palm, fingers; by object vertex, then hand edge) before tip
     contacts (palm, fingers; by hand vertex, then object edge). ``counts`` (a dict), if
     given, counts the pairs within reach rejected as ``"invalid"`` or ``"duplicate"``, and
@@ -79,14 +80,15 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
         if key in exclude:
             continue
         if any(
-            abs(p[0] - p2[0]) <= 2 * tol
+            body2 == key[0]
+            and abs(p[0] - p2[0]) <= 2 * tol
             and abs(p[1] - p2[1]) <= 2 * tol
             and n[0] * n2[0] + n[1] * n2[1] > 1 - 1e-9
-            for p2, n2 in kept
+            for body2, p2, n2 in kept
         ):
             counts["duplicate"] = counts.get("duplicate", 0) + 1
             continue
-        kept.append((p, n))
+        kept.append((key[0], p, n))
         out.append(key)
     return out
 

@@ -23,9 +23,11 @@ A pair is a contact when all of these hold:
   of 1e-7 rad and at least a few tolerances (an edge that has just come to lie along
   another, located to within ``tol`` at both of its ends);
 * it is not in ``exclude``;
-* no contact kept before it has the same point (to within ``2 tol`` in each coordinate)
-  and normal (cosine above ``1 - 1e-9``): a vertex-vertex touch along flush edges is seen
-  both as an edge and as a tip contact, and the one kept is the first.
+* no contact of the same body kept before it has the same point (to within ``2 tol`` in
+  each coordinate) and normal (cosine above ``1 - 1e-9``): a vertex-vertex touch along
+  flush edges is seen both as an edge and as a tip contact, and the one kept is the first.
+  Two bodies touching the object at one point (crossed fingers along one face) are two
+  contacts.
 
 Pairs are visited edge contacts first (the support, then hand bodies 1-3, each by object
 vertex then hand edge), then tip contacts (hand bodies 1-3, each by hand vertex then object
@@ -98,11 +100,12 @@ def _on_edge(
 def _keep(
     out: np.ndarray, seen: np.ndarray, count: int, key: tuple, p: tuple, n: tuple, tol: float
 ) -> int:
-    """Append ``key`` with point ``p`` and normal ``n`` unless a kept contact has the same
-    point and normal; the new count."""
+    """Append ``key`` with point ``p`` and normal ``n`` unless a kept contact of the same body
+    has the same point and normal; the new count."""
     for i in range(count):
         if (
-            abs(p[0] - seen[i, 0]) <= 2.0 * tol
+            out[i, 0] == key[0]
+            and abs(p[0] - seen[i, 0]) <= 2.0 * tol
             and abs(p[1] - seen[i, 1]) <= 2.0 * tol
             and n[0] * seen[i, 2] + n[1] * seen[i, 3] > SAME_NORMAL
         ):
