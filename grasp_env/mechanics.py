@@ -23,6 +23,7 @@ from grasp_env import kinematics as kin
 from grasp_env.errors import SolverError
 from grasp_env.scene import Scene
 from grasp_env.sim import dense
+from grasp_env.sim.pose import constraint_matrix
 from grasp_env.state import State
 
 
@@ -32,8 +33,11 @@ def V_ob(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.n
     Row i maps an object twist to the normal velocity of the object's material point at
     contact i: ``n_i . (v + omega k x r_i) = [n_i, r_i x n_i] . (v, omega)``.
     """
-    r = points_W - com_W
-    return np.column_stack([normals_W, geo.cross2(r, normals_W)])
+    return constraint_matrix(
+        np.asarray(points_W, dtype=float).reshape(-1, 2),
+        np.asarray(normals_W, dtype=float).reshape(-1, 2),
+        np.asarray(com_W, dtype=float),
+    )
 
 
 def xi(

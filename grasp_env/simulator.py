@@ -1004,11 +1004,10 @@ def _key_array(keys: list) -> np.ndarray:
 
 
 def _arrays(pl: ct.Placement, keys: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    n = len(keys)
-    P, N = np.empty((n, 2)), np.empty((n, 2))
-    for i, k in enumerate(keys):
-        P[i], N[i], *_ = pl.evaluate(k)
-    return P, N, np.array([k[0] for k in keys], dtype=int)
+    """Points, normals and bodies of the contacts ``keys`` at placement ``pl``."""
+    rows = _key_array(keys)
+    P, N, *_ = placement.contact_rows(pl.world, pl.local.n_object, pl.local.n_vertices, rows)
+    return P, N, rows[:, 0].copy()
 
 
 def _choices(pl: ct.Placement, keys: list, tol: float):
