@@ -27,8 +27,9 @@ TOLS = (1e-9, 1e-6, 1e-3)
 
 def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) -> list[tuple]:
     """Contacts by the documented rules, from the placement's world polygons and normals:
-    ``|gap| <= tol``, the projection on the edge widened by ``tol`` at both ends, both of the
-    vertex's neighbours on its side of the edge's line up to ``max(4 tol, 1e-7 |d|)``, not
+    ``|gap| <= tol``, the projection on the edge or the vertex within ``tol`` of its end,
+    both of the vertex's neighbours on its side of the edge's line up to
+    ``max(4 tol, 1e-7 |d|)``, not
     excluded, and no earlier kept contact of the same body with the same point (``2 tol``)
     and normal;
     edge contacts (support, palm, fingers; by object vertex, then hand edge) before tip
@@ -45,7 +46,8 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
         length = math.hypot(dx, dy)
         t = (rx * dx + ry * dy) / length**2
         gap = rx * nrm[0] + ry * nrm[1]
-        return abs(gap) <= tol and -tol / length <= t <= 1 + tol / length
+        over = max(-t, t - 1, 0.0) * length  # past an end: within tol of it
+        return abs(gap) <= tol and math.hypot(over, gap) <= tol if over else abs(gap) <= tol
 
     def valid(poly, v, nrm):
         p = poly[v]

@@ -12,9 +12,10 @@ A pair is a contact when all of these hold:
 * the body is near the object (:func:`grasp_env.sim.clearance.near_bodies`, margin
   ``10 tol``);
 * the vertex lies within ``tol`` of the edge's line (``|gap| <= tol``);
-* its projection falls on the edge, widened at both ends by ``tol`` (a length): events are
-  located to within the tolerance, so a vertex that has just reached an edge's end (a
-  vertex-vertex touch) may project a hair outside it; on the support every vertex counts;
+* its projection falls on the edge, or past an end with the vertex within ``tol`` of that
+  end (Euclidean distance, as for "touching" anywhere else): events are located to within
+  the tolerance, so a vertex that has just reached an edge's end (a vertex-vertex touch)
+  may project a hair outside it; on the support every vertex counts;
 * the vertex's two adjacent edges leave on its own side of the edge's line (locally
   valid): for convex bodies that line then separates them near the contact, so its
   half-plane is a valid frictionless constraint. At a vertex-vertex touch this rejects the
@@ -84,16 +85,16 @@ def _excluded(exclude: np.ndarray, body: int, kind: int, k: int, j: int) -> bool
 def _on_edge(
     world: np.ndarray, v: int, a: int, b: int, nrm: int, slack: float
 ) -> tuple[bool, float]:
-    """Whether point row ``v`` projects onto the edge from point row ``a`` to ``b``
-    (widened by ``slack`` at both ends), and its gap to the edge's line (normal row
-    ``nrm``)."""
+    """Whether point row ``v`` projects onto the edge from point row ``a`` to ``b``, or lies
+    past one of its ends within ``slack`` of that end, and its gap to the edge's line
+    (normal row ``nrm``)."""
     rx, ry = world[v, 0] - world[a, 0], world[v, 1] - world[a, 1]
     dx, dy = world[b, 0] - world[a, 0], world[b, 1] - world[a, 1]
     gap = rx * world[nrm, 0] + ry * world[nrm, 1]
     L = math.sqrt(dx * dx + dy * dy)
     t = (rx * dx + ry * dy) / (L * L)
-    e = slack / L
-    return t >= -e and t <= 1.0 + e, gap
+    over = max(-t, t - 1.0, 0.0) * L  # how far past an end, along the edge
+    return over == 0.0 or over * over + gap * gap <= slack * slack, gap
 
 
 @njit(cache=True)
