@@ -46,7 +46,7 @@ import numpy as np
 from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
 from grasp_env import mechanics as mech
 from grasp_env import planner
-from grasp_env.cli import HelpFormatter
+from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.errors import SolverError
 from grasp_env.scene import bundled_scenes, load_scene
 from grasp_env.simulator import SimulationError, Simulator
@@ -155,9 +155,8 @@ def main(argv: list[str] | None = None) -> int:
         args.out = Path("runs") / "scripted" / scene.name
     logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
     print(f"planning {scene.name} ...", file=sys.stderr)
-    if args.out.exists() and not args.out.is_dir():
-        parser.error(f"--out {str(args.out)!r} exists and is not a directory")
-    args.out.mkdir(parents=True, exist_ok=True)
+    if problem := out_dir_problem(args.out):
+        parser.error(f"--out {problem}")
 
     sim = Simulator(scene)
     plan = planner.plan_grasp(scene, sim=sim, dq=args.dq)

@@ -33,6 +33,7 @@ import gymnasium as gym
 import yaml
 
 from agents.train_ppo import wrapper_specs
+from grasp_env.cli import out_dir_problem
 
 if TYPE_CHECKING:
     from ray.rllib.algorithms.algorithm import Algorithm
@@ -321,13 +322,8 @@ def _out_problem(out: Path) -> str | None:
     path = out.resolve()
     if path.is_relative_to(REPO) and not path.is_relative_to(REPO / "runs"):
         return f"--out {str(out)!r} is inside the repository; use runs/... or a path outside it"
-    if path.exists() and not path.is_dir():
-        return f"--out {str(out)!r} exists and is not a directory"
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return f"--out {str(out)!r} cannot be created ({exc.strerror or exc})"
-    return None
+    problem = out_dir_problem(out)
+    return None if problem is None else f"--out {problem}"
 
 
 def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, Any]]:

@@ -26,8 +26,8 @@ from benchmarks import (
     throughput,
     work_precision,
 )
-from benchmarks.common import OUT, headless, out_dir_problem
-from grasp_env.cli import HelpFormatter
+from benchmarks.common import OUT, headless
+from grasp_env.cli import HelpFormatter, out_dir_problem
 
 SUITE = {
     "throughput": lambda quick, out: throughput.run(quick, out / "throughput.md"),

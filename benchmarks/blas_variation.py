@@ -41,7 +41,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from benchmarks.common import OUT, REPO, headless, out_dir_problem, table, write
+from benchmarks.common import OUT, REPO, headless, table, write
+from grasp_env.cli import out_dir_problem
 
 CORE_TYPES = ("unset", "Haswell", "Sandybridge", "Prescott")
 BASELINE = "unset"

@@ -78,20 +78,6 @@ def machine_line() -> str:
     )
 
 
-def out_dir_problem(path: Path) -> str | None:
-    """Why results cannot go to folder ``path`` (created if missing), or None if they can:
-    checked before any work starts."""
-    if path.exists() and not path.is_dir():
-        return f"{path} exists and is not a directory"
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return f"{path} cannot be created ({exc.strerror or exc})"
-    if not os.access(path, os.W_OK | os.X_OK):
-        return f"{path} is not writable"
-    return None
-
-
 def table(header: Sequence[str], rows: Sequence[Sequence[object]], align: str = "") -> list[str]:
     """A markdown table; ``align`` gives one of ``l``/``r`` per column (default: left, right...)."""
     align = align or "l" + "r" * (len(header) - 1)

@@ -22,7 +22,8 @@ import sys
 import time
 from pathlib import Path
 
-from benchmarks.common import OUT, REPO, headless, out_dir_problem, table, write
+from benchmarks.common import OUT, REPO, headless, table, write
+from grasp_env.cli import out_dir_problem
 
 #: RLlib set-ups: (env runners, envs per runner). Two envs in one process is what SB3's
 #: DummyVecEnv does; RLlib then batches their forward passes and connector calls.

@@ -33,7 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.common import OUT, headless, out_dir_problem, table, write
+from benchmarks.common import OUT, headless, table, write
+from grasp_env.cli import out_dir_problem
 
 SUITES = ("extreme", "soak")
 #: Targets, seconds.

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from image_checks import ink_runs
 
 import grasp_env
 from grasp_env import geometry as geo
@@ -157,19 +158,6 @@ def test_view_refits_when_a_body_leaves_it(grasped_state):
         assert y0 <= poly[:, 1].min() and poly[:, 1].max() <= y1
 
 
-def _ink_runs(image: np.ndarray, limit: int = 100) -> list[int]:
-    """Heights of the runs of pixel rows holding dark (text) pixels."""
-    dark = (image[..., :3].max(axis=-1) < limit).any(axis=1)
-    runs, n = [], 0
-    for d in dark:
-        if d:
-            n += 1
-        elif n:
-            runs.append(n)
-            n = 0
-    return runs + ([n] if n else [])
-
-
 def test_legend_shows_every_mark(grasped_state):
     renderer = Renderer(640, 480)
     strip = renderer.legend()
@@ -180,7 +168,7 @@ def test_legend_shows_every_mark(grasped_state):
     for color in (SUPPORT_COLOR, PALM_COLOR, FINGER_COLOR, OBJECT_COLOR, CONTACT_COLOR):
         assert _pixels_of(strip, color) > 0, color
     assert _pixels_of(strip, FORCE_COLOR) > 0
-    assert min(_ink_runs(strip)) >= 10
+    assert min(ink_runs(strip)) >= 10
 
 
 def test_text_is_readable_at_the_default_size():
@@ -188,7 +176,7 @@ def test_text_is_readable_at_the_default_size():
     line = renderer.text_image(["fig13 | step 18 | form closure | y* = 1.49 W"], 640)
     renderer.close()
     assert renderer.font_size >= 20
-    assert _ink_runs(line) and _ink_runs(line)[0] >= 14
+    assert ink_runs(line) and ink_runs(line)[0] >= 14
 
 
 def test_text_and_force_scale_change_the_frame(grasped_state):

@@ -15,6 +15,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from image_checks import ink_runs
 
 import grasp_env
 from agents.scripted import EXIT_NOT_TIPPABLE, ScriptedPolicy, main
@@ -59,19 +60,6 @@ def test_cli_writes_every_output(fig13_out, capsys):
     assert plan["steps"][-1]["form_closure"] and plan["steps"][-1]["grip"] > 0
 
 
-def _ink_runs(image: np.ndarray, limit: int = 100) -> list[int]:
-    """Heights of the runs of pixel rows holding dark (text) pixels."""
-    dark = (image[..., :3].max(axis=-1) < limit).any(axis=1)
-    runs, n = [], 0
-    for d in dark:
-        if d:
-            n += 1
-        elif n:
-            runs.append(n)
-            n = 0
-    return runs + ([n] if n else [])
-
-
 def test_filmstrip_titles_are_readable_and_it_has_a_legend(fig13_out):
     import imageio.v2 as imageio
 
@@ -81,7 +69,7 @@ def test_filmstrip_titles_are_readable_and_it_has_a_legend(fig13_out):
     strip = imageio.imread(fig13_out / "filmstrip.png")[..., :3]
     # The sheet's heading, then the first frame's two title lines: each at least 14 pixels
     # high (from the top of a digit to the bottom of a descender).
-    runs = _ink_runs(strip[: 3 * FRAME_SIZE[1] // 4, : FRAME_SIZE[0]])
+    runs = ink_runs(strip[: 3 * FRAME_SIZE[1] // 4, : FRAME_SIZE[0]])
     assert len(runs) >= 3 and min(runs[:3]) >= 14, runs
     # The legend below the frames shows the marks the frames use.
     legend = strip[-60:]
