@@ -23,7 +23,7 @@ from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env.scene import Scene
 from grasp_env.sim import clearance, detection
-from grasp_env.sim.placement import world_points
+from grasp_env.sim.placement import contact_rows, world_points
 
 EDGE, TIP = 0, 1
 KIND_NAMES = ("edge", "tip")
@@ -110,31 +110,11 @@ class Placement:
         ``t`` is the position of the vertex's projection along the edge (0 at the edge's first
         vertex, 1 at its second); for the support it is 0.5 and the length infinite.
         """
-        body, kind, k, j = key
-        if kind == EDGE:
-            p = self.obj_W[k]
-            if body == geo.SUPPORT:
-                return p, _UP, float(p[1]), 0.5, np.inf
-            poly, n = self.hand_W[body - 1], self.hand_n_W[body - 1][j]
-            a, b = poly[j], poly[(j + 1) % len(poly)]
-            return (p, n, *_gap_along(p, a, b, n))
-        p = self.hand_W[body - 1][j]
-        m = self.obj_n_W[k]
-        a, b = self.obj_W[k], self.obj_W[(k + 1) % len(self.obj_W)]
-        return (p, -m, *_gap_along(p, a, b, m))
-
-
-def _gap_along(p: np.ndarray, a: np.ndarray, b: np.ndarray, n: np.ndarray):
-    """Gap of ``p`` to the line of edge ``a -> b`` with unit normal ``n``, the edge
-    parameter of its projection, and the edge length (2-vector products written out: no
-    BLAS call, whose rounding varies with the machine)."""
-    dx, dy = float(b[0] - a[0]), float(b[1] - a[1])
-    rx, ry = float(p[0] - a[0]), float(p[1] - a[1])
-    L2 = dx * dx + dy * dy
-    return float(n[0]) * rx + float(n[1]) * ry, (rx * dx + ry * dy) / L2, L2**0.5
-
-
-_UP = np.array([0.0, 1.0])
+        local = self.local
+        P, N, F, T, L = contact_rows(
+            self.world, local.n_object, local.n_vertices, np.array([key], dtype=np.int64)
+        )
+        return P[0], N[0], float(F[0]), float(T[0]), float(L[0])
 
 
 class LocalGeometry:
