@@ -13,3 +13,13 @@ class SolverError(RuntimeError):
     def __init__(self, message: str, status: str) -> None:
         super().__init__(f"{message} (status: {status})")
         self.status = status
+
+
+class SimulationError(RuntimeError):
+    """The simulator could not continue (a solve failed even on the fallbacks)."""
+
+
+class WorkLimitError(SimulationError):
+    """A move needed more work than its budget (``max_solves`` pose solves, ``max_iterations``
+    increments, or a stall without progress): it cannot be followed in bounded time.
+    Deterministic, so it is not retried."""

@@ -19,8 +19,13 @@ from __future__ import annotations
 import contextlib
 import copy
 import itertools
+import json
 import math
+import os
 import signal
+import subprocess
+import sys
+import textwrap
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -34,6 +39,7 @@ from scipy.optimize import brentq, linprog
 
 import grasp_env
 from grasp_env import Simulator, State
+from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.simulator import WorkLimitError
 
 SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
@@ -852,7 +858,7 @@ def test_one_move_equals_ten_through_events(
     assert contact_set(one) == contact_set(ten)
 
 
-def test_contact_lost_again_and_again_is_dropped(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_contact_lost_again_and_again_is_dropped() -> None:
     """Regression (found by the planner's exploratory search on tall_rectangle): the object
     leans on finger 1's tip, finger 2's tip and the support while the palm turns, wedged
     with forces near 7e5 weights. Near s = 0.5 finger 2's force touches zero; the re-planned
@@ -860,16 +866,9 @@ def test_contact_lost_again_and_again_is_dropped(monkeypatch: pytest.MonkeyPatch
     10000 increments and 500 s later the move raised SimulationError 'no progress'. Whether
     the force dips below zero at all is decided by rounding there, so the move must simply
     end after a bounded number of increments, valid, and agree with the same move cut in 50
-    pieces (each of which crosses the point with fewer, longer increments)."""
-    steps = 0
-    try_step = Simulator._try_step
-
-    def counting(self, *args, **kwargs):
-        nonlocal steps
-        steps += 1
-        return try_step(self, *args, **kwargs)
-
-    monkeypatch.setattr(Simulator, "_try_step", counting)
+    pieces (each of which crosses the point with fewer, longer increments). Every increment
+    makes at least one pose solve, so the 10000 increments of the bug would show as as many
+    solves."""
     sim = Simulator(scene_of("tall_rectangle"), max_iterations=MAX_ITERATIONS)
     pose = np.array([0.01998986868443757, 0.25615743936771634, -0.09837377974016227])
     hand = np.array([0.16, 0.77, -0.12, -0.9547500768881969, -2.373256222405706])
@@ -879,7 +878,7 @@ def test_contact_lost_again_and_again_is_dropped(monkeypatch: pytest.MonkeyPatch
     target[2] = -0.16
     one = sim.move_hand(start, palm=target[:3], fingers=target[3:])
     assert_invariants(one, tol_of(sim), "turned palm")
-    assert steps <= 100, f"{steps} increments for one move"
+    assert sim.solves <= 1000, f"{sim.solves} pose solves for one move"
     fifty = split_move(sim, start, target, 50)
     np.testing.assert_allclose(one.hand, fifty.hand, atol=1e-12)
     np.testing.assert_allclose(one.object_pose, fifty.object_pose, atol=FOLD_POSE_TOL)
@@ -902,30 +901,51 @@ def test_events_cycling_at_one_point_end_the_move_early() -> None:
         sim.move_hand(start, palm=(0.16, 0.81, 1.0000000000000002))
 
 
-def test_fall_with_no_admissible_step_stops_searching(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_fall_with_no_admissible_step_stops_searching() -> None:
     """Regression (found by the planner's exploratory search): when no point along a fall
     step solves the contact equations, the step's bisection ran all 200 halvings (its
     stopping test was skipped on a failed solve), and the fall then halved the step 50 times,
     each repeating the very same solves (a halved step's points are the old step's
     bisection points): 10^5 Newton solves and 46-88 s for one hand move. Here every solve
-    fails (patched), for an object in the air: the fall must give up at once, after one
-    bisection down to rounding (53 halvings), leaving the object where it is."""
-    sim = Simulator(scene_of("fig13"))
-    start = sim.reset()
-    lifted = start.object_pose + np.array([0.0, 0.1, 0.0])
-    calls = 0
+    fails (patched into the interpreted core), for an object in the air: the fall must give
+    up at once, after one bisection down to rounding (53 halvings), leaving the object where
+    it is."""
+    out = run_interpreted(
+        """
+        import numpy as np
+        from grasp_env import Simulator
+        from grasp_env.sim import fall, move
+        calls = 0
+        def failing(model, q0, h, E, solves):
+            global calls
+            calls += 1
+            return q0, False
+        fall.newton = failing
+        sim = Simulator("fig13")
+        start = sim.reset()
+        lifted = start.object_pose + np.array([0.0, 0.1, 0.0])
+        events = move.new_log()
+        q, moved = fall.fall(sim.model, lifted, start.hand, 0.0, events, sim._solves)
+        print(json.dumps({"q": (q - lifted).tolist(), "moved": moved, "calls": calls,
+                          "events": [e[0] for e in events]}))
+        """
+    )
+    assert out["q"] == [0.0, 0.0, 0.0] and not out["moved"]
+    assert out["events"] == [FALL_START, FALL_END]
+    assert 50 <= out["calls"] <= 60
 
-    def failing(self, q0, h, E):
-        nonlocal calls
-        calls += 1
-        return None
 
-    monkeypatch.setattr(Simulator, "_newton", failing)
-    events: list = []
-    q = sim._fall(lifted, start.hand, 0.0, events)
-    np.testing.assert_array_equal(q, lifted)
-    assert [e.kind for e in events] == ["fall_start", "fall_end"]
-    assert 50 <= calls <= 60
+def run_interpreted(code: str) -> dict:
+    """Run ``code`` in a fresh interpreter with the compiled core interpreted
+    (``NUMBA_DISABLE_JIT=1``), where its functions can be patched, and return the JSON it
+    prints last."""
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    script = "import json\n" + textwrap.dedent(code)
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 # ---------------------------------------------------------------------------------------
@@ -1342,46 +1362,76 @@ def test_bad_arguments_raise_value_error(case: str) -> None:
 # ---------------------------------------------------------------------------------------
 
 
-def test_failed_fast_lp_retries_on_reference_path(monkeypatch: pytest.MonkeyPatch) -> None:
-    """When the fast LP path fails inside a move, the move is redone on the HiGHS path with
-    smaller increments, and ends where a simulator on the reference path ends."""
+def test_failed_fast_lp_retries_on_reference_path() -> None:
+    """When the fast LP path fails inside a move (injected into the interpreted core), the
+    move is redone on the HiGHS path with smaller increments, and ends where a simulator on
+    the reference path ends."""
+    out = run_interpreted(
+        """
+        import math
+        from grasp_env import Simulator
+        from grasp_env.errors import SolverError
+        from grasp_env.sim import velocity_lp
+        calls = 0
+        def failing(V, xi, c):
+            global calls
+            calls += 1
+            raise SolverError("injected", "fast path down")
+        fingers = (-math.pi / 2 + 0.45, -math.pi / 2 - 0.45)
+        reference = Simulator("fig13", lp_solver="highs", max_step=0.0625)
+        expected = reference.move_hand(reference.reset(), fingers=fingers)
+        sim = Simulator("fig13")
+        start = sim.reset()
+        velocity_lp.solve = failing
+        state = sim.move_hand(start, fingers=fingers)
+        print(json.dumps({"calls": calls, "pose": state.object_pose.tolist(),
+                          "expected": expected.object_pose.tolist(),
+                          "reference_lp": sim.model.reference_lp}))
+        """
+    )
+    assert out["calls"] > 0, "the injected failure should have been hit"
+    np.testing.assert_allclose(out["pose"], out["expected"], atol=POSE_TOL)
+    assert not out["reference_lp"], "the retry must not change the simulator itself"
+
+
+def test_retry_result_is_valid(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A move retried on the reference path returns a valid state: here the first attempt
+    fails on the reference LP (injected once) and the retry completes."""
     from grasp_env import mechanics
     from grasp_env.errors import SolverError
 
     real = mechanics.motion_lp
-    calls = {"fast": 0}
+    calls = {"n": 0}
 
-    def flaky(V, xi_, weight, solver="fast"):
-        if solver == "fast":
-            calls["fast"] += 1
-            raise SolverError("injected", "fast path down")
+    def once(V, xi_, weight, solver="fast"):
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise SolverError("injected", "down once")
         return real(V, xi_, weight, solver)
 
-    fingers = (-HALF_PI + 0.45, -HALF_PI - 0.45)
-    reference = Simulator(scene_of("fig13"), lp_solver="highs", max_step=0.0625)
-    expected = reference.move_hand(reference.reset(), fingers=fingers)
-    sim = Simulator(scene_of("fig13"))
+    sim = Simulator(scene_of("fig13"), lp_solver="highs")
     start = sim.reset()
-    monkeypatch.setattr(mechanics, "motion_lp", flaky)
-    state = sim.move_hand(start, fingers=fingers)
-    assert calls["fast"] > 0, "the injected failure should have been hit"
-    np.testing.assert_allclose(state.object_pose, expected.object_pose, atol=POSE_TOL)
+    monkeypatch.setattr(mechanics, "motion_lp", once)
+    state = sim.move_hand(start, fingers=(-HALF_PI + 0.45, -HALF_PI - 0.45))
+    assert calls["n"] > 1
     assert_invariants(state, tol_of(sim), "retried move")
-    assert sim.lp_solver == "fast", "the retry must not change the simulator itself"
 
 
 def test_failed_retry_raises_simulation_error(monkeypatch: pytest.MonkeyPatch) -> None:
-    """If the reference path fails too, the move raises SimulationError naming both causes."""
+    """If the reference path fails too, the move raises SimulationError naming both causes
+    (here the reference LP fails, which both attempts of a reference-path simulator use)."""
     from grasp_env import mechanics
     from grasp_env.errors import SolverError
 
     def broken(V, xi_, weight, solver="fast"):
-        raise SolverError("injected", f"{solver} path down")
+        raise SolverError("injected", "highs path down")
 
-    sim = Simulator(scene_of("fig13"))
+    sim = Simulator(scene_of("fig13"), lp_solver="highs")
     start = sim.reset()
     monkeypatch.setattr(mechanics, "motion_lp", broken)
-    with pytest.raises(grasp_env.SimulationError, match=r"fast path down.*highs path down"):
+    with pytest.raises(
+        grasp_env.SimulationError, match=r"highs path down.*again.*highs path down"
+    ):
         sim.move_hand(start, fingers=(-HALF_PI + 0.45, -HALF_PI - 0.45))
 
 
@@ -1389,7 +1439,11 @@ def test_independent_forces_match_lstsq() -> None:
     """The closed-form contact forces of up to three wrenches agree with numpy's SVD-based
     least squares (the reference), on random and nearly dependent wrench sets, and refuse
     dependent ones."""
-    from grasp_env.simulator import _independent_forces
+    from grasp_env.sim.pose import independent_forces
+
+    def _independent_forces(W, g):
+        lam, ok = independent_forces(np.ascontiguousarray(W), g)
+        return lam if ok else None
 
     rng = np.random.default_rng(7)
     for m in (1, 2, 3):
@@ -1415,31 +1469,22 @@ def test_no_contacts_never_reach_scipy_nnls() -> None:
     """Regression (soak seed 4, shape 52): with no contacts at all the hold test used to
     call scipy's nnls on a 3x0 matrix, which aborts the whole process in scipy 1.17
     ("double free"). No contacts hold nothing: the residual is the whole weight."""
-    from grasp_env.simulator import _nnls
+    from grasp_env.sim.dense import nnls
 
-    lam, res = _nnls(np.zeros((3, 0)), np.array([0.0, 2.5, 0.0]))
+    lam, res = nnls(np.zeros((3, 0)), np.array([0.0, 2.5, 0.0]))
     assert lam.shape == (0,) and res == pytest.approx(2.5)
 
 
-def test_work_limit_bounds_a_move_and_is_not_retried(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_work_limit_bounds_a_move_and_is_not_retried() -> None:
     """A move that needs more than ``max_solves`` pose solves raises WorkLimitError after
-    exactly that many, without the retry on the reference path (which would repeat the same
-    work); the same move with the default budget completes."""
+    exactly that many, without the retry on the reference path (which shares the budget, so
+    it would have charged one solve more); the same move with the default budget completes."""
     sim = Simulator(scene_of("fig13"), max_solves=5)
     start = sim.reset()
     q1, q2 = start.finger_angles
-    careful = 0
-    make_careful = Simulator._careful
-
-    def counting(self):
-        nonlocal careful
-        careful += 1
-        return make_careful(self)
-
-    monkeypatch.setattr(Simulator, "_careful", counting)
     with pytest.raises(WorkLimitError, match="more than 5 pose solves"):
         sim.move_hand(start, fingers=(q1 + 0.8, q2 - 0.8))
-    assert sim._solves[0] == 6 and careful == 0
+    assert sim.solves == 6
     state = Simulator(scene_of("fig13")).move_hand(start, fingers=(q1 + 0.8, q2 - 0.8))
     assert state.form_closure
 

@@ -378,10 +378,11 @@ def test_fast_lp_failure_falls_back_to_reference(monkeypatch: pytest.MonkeyPatch
 
 
 def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every LP fails (injected on both paths): ``step`` must not raise; it ends the episode
-    with ``info["sim_error"]`` naming the failure and leaves the state as it was; once the
-    solver works again, ``reset`` and ``step`` work."""
-    from grasp_env import fastlp, mechanics
+    """Every LP fails (injected into the reference path, which the simulator is switched to
+    for the failing step, and which its retry uses too): ``step`` must not raise; it ends the
+    episode with ``info["sim_error"]`` naming the failure and leaves the state as it was;
+    once the solver works again, ``reset`` and ``step`` work."""
+    from grasp_env import mechanics
     from grasp_env.errors import SolverError
 
     env = FrictionlessGraspEnv("fig13", palm_control=True)
@@ -397,9 +398,10 @@ def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch
     def fail(*args, **kwargs):
         raise SolverError("injected failure", "numerical")
 
+    sim = env.unwrapped.simulator
     with monkeypatch.context() as m:
-        m.setattr(fastlp, "solve_velocity_lp", fail)
-        m.setattr(mechanics, "velocity_lp", fail)
+        m.setattr(sim, "model", sim.model._replace(reference_lp=True))
+        m.setattr(mechanics, "motion_lp", fail)
         obs, reward, term, _, info = env.step(good)
     assert term and "sim_error" in info and "injected failure" in info["sim_error"]
     np.testing.assert_array_equal(obs, obs0)

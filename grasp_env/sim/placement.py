@@ -108,3 +108,9 @@ def contact_rows(
         else:
             N[i, 0], N[i, 1] = -nx, -ny
     return P, N, F, T, L
+
+
+@njit(cache=True)
+def place(model, q: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """:func:`world_points` of a :class:`~grasp_env.sim.model.Model`'s bodies at ``(q, h)``."""
+    return world_points(model.points, model.body, model.n_vertices, model.half, q, h)

@@ -1,0 +1,89 @@
+"""Whether contacts hold the object against gravity, and with which forces.
+
+Forces are in units of the object's weight ``W`` and moments in ``W`` times the palm width
+(``model.per_length``), so that every tolerance here is unit-free.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from grasp_env.sim import contact_sets, dense
+from grasp_env.sim.motion import motion_lp
+from grasp_env.sim.placement import contact_rows
+from grasp_env.sim.pose import constraint_matrix, independent_forces
+from grasp_env.sim.velocity_lp import OPTIMAL
+
+#: Largest contact force, in object weights, that counts as holding the object.
+MAX_FORCE = 1e6
+
+
+@njit(cache=True)
+def wrench_rows(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """``V_ob`` (m, 3) of the contacts ``keys`` with moments per palm width."""
+    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
+    return constraint_matrix(P, N, com) * model.per_length
+
+
+@njit(cache=True)
+def held(
+    model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, max_force: float
+) -> bool:
+    """True when the contacts ``keys`` hold the object against gravity: non-negative forces
+    balance it to ``ftol``, none beyond ``max_force`` weights (a wedge between faces parallel
+    to rounding would need them, and in double precision they no longer balance). At a
+    vertex-vertex touch the object may move along either candidate's edge: it is held only
+    if every choice of candidates holds it."""
+    if keys.shape[0] == 0:
+        return False
+    for choice in contact_sets.choices(model, world, keys):
+        V = wrench_rows(model, world, com, choice)
+        lam, res = dense.nnls(V.T.copy(), model.gravity)
+        if res > ftol or lam.max() > max_force * model.weight:
+            return False
+    return True
+
+
+@njit(cache=True)
+def rest_forces(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """Contact forces holding the object once the hand stops: the least total force in
+    equilibrium (a position-controlled hand adds no preload, section 3.2)."""
+    m = keys.shape[0]
+    if m == 0:
+        return np.zeros(0)
+    V = wrench_rows(model, world, com, keys)
+    g = model.gravity
+    W = V.T.copy()
+    if m <= 3:
+        # independent wrenches: the only forces in equilibrium, if non-negative
+        lam, ok = independent_forces(W, g)
+        if ok and lam.min() >= 0.0 and np.abs(dense.matvec(W, lam) - g).max() <= model.ftol:
+            return lam
+    # min 1^T lam s.t. V^T lam = (0, W, 0), lam >= 0: the force LP with xi = -1, solved
+    # through its primal (min W v_y s.t. V v >= -1) by the same motion LP as the steps.
+    status, _, lam, _ = motion_lp(model, V, -np.ones(m))
+    if status != OPTIMAL:
+        # held only to within the fall's tolerance: the closest non-negative forces
+        return dense.nnls(W, g)[0]
+    return np.maximum(lam, 0.0)
+
+
+@njit(cache=True)
+def determined(model, world: np.ndarray, q: np.ndarray, E: np.ndarray) -> bool:
+    """True when ``E`` cannot change before an event: three independent contacts holding the
+    object with forces all clearly positive, or the object resting on the support."""
+    if contact_sets.all_on_support(E):
+        return True  # resting on the support: only a new contact changes that
+    if E.shape[0] != 3:
+        return False
+    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, E)
+    W = constraint_matrix(P, N, q[:2]).T.copy()
+    Ws = W.copy()
+    for k in range(3):
+        for j in range(3):
+            Ws[k, j] *= model.scale[k]
+    if abs(dense.det(Ws)) < 1e-8:
+        return False
+    lam, ok = dense.solve(W, model.gravity)
+    return ok and lam.min() > 1e-6 * model.weight

@@ -1,0 +1,223 @@
+"""Quasi-static falls: the object follows the steepest admissible descent of its potential
+energy (gravity projected onto the admissible cone, in the mass metric) until contacts
+hold it.
+
+Each fall step keeps the descent's tight contacts closed (Newton on their equations) and is
+shortened to the first new contact or edge end; near a stable rest on one or two contacts
+(a cradle, where descent converges only linearly) the rest pose is solved for directly.
+Events are appended to the move's log (:mod:`grasp_env.sim.events`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from grasp_env.errors import SimulationError, WorkLimitError
+from grasp_env.sim import contact_sets, dense, detection, least_norm
+from grasp_env.sim.equilibrium import MAX_FORCE, held
+from grasp_env.sim.events import FALL_END, FALL_START
+from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
+from grasp_env.sim.pose import constraint_matrix
+from grasp_env.sim.step import geometry_violation, newton, newton_held
+
+#: Halvings of a fall step that lowers nothing before it counts as no way down.
+HALVINGS = 50
+
+
+@njit(cache=True)
+def touching(model, world: np.ndarray, exclude: np.ndarray) -> np.ndarray:
+    """The contacts at a placement (:func:`grasp_env.sim.detection.detect`)."""
+    return detection.detect(world, model.n_object, model.n_vertices, model.tol, exclude)
+
+
+@njit(cache=True)
+def held_here(model, q: np.ndarray, h: np.ndarray, ftol: float) -> bool:
+    """Whether the contacts touching at ``(q, h)`` hold the object, to ``ftol``."""
+    world = place(model, q, h)
+    keys = touching(model, world, contact_sets.empty())
+    return held(model, world, q[:2], keys, ftol, MAX_FORCE)
+
+
+@njit(cache=True)
+def descent(model, world: np.ndarray, q: np.ndarray, keys: np.ndarray):
+    """Steepest admissible descent (scaled twist) for contacts ``keys``, and the contacts it
+    keeps closed: ``a = argmin |a - g|^2 s.t. C a >= 0`` (gravity projected on the cone)."""
+    g = np.array([0.0, -1.0, 0.0])
+    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
+    Cs = constraint_matrix(P, N, q[:2]) * model.scale
+    w, ok = least_norm.least_norm(np.zeros((0, 3)), np.zeros(0), Cs, -dense.matvec(Cs, g), 1e-10)
+    if not ok:
+        raise SimulationError("fall direction infeasible")
+    a = w + g
+    tight = dense.matvec(Cs, a) <= 1e-10
+    return a, keys[tight].copy()
+
+
+@njit(cache=True)
+def fall_step(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray, solves):
+    """One fall step of at most ``d``, shortened to the first new contact or edge end:
+    ``(q_new, at_event, moved)``; ``at_event`` when the step was shortened to an event,
+    ``moved`` False when no point along ``d`` was admissible (``q_new`` is ``q``)."""
+    q1, ok = newton(model, q + d, h, E, solves)
+    if ok and geometry_violation(model, q1, h, E) <= model.tol:
+        return q1, False, True
+    lo, hi, q_lo, moved = 0.0, 1.0, q, False
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if hi - lo < 1e-16 or not lo < mid < hi:
+            break  # located to rounding (near 1 doubles are 1.1e-16 apart)
+        q_mid, ok = newton(model, q + mid * d, h, E, solves)
+        if not ok:
+            hi = mid
+            continue
+        violation = geometry_violation(model, q_mid, h, E)
+        if violation > model.tol:
+            hi = mid
+        elif violation >= -model.tol:
+            return q_mid, True, True
+        else:
+            lo, q_lo, moved = mid, q_mid, True
+    return q_lo, True, moved
+
+
+@njit(cache=True)
+def cradle(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray, solves):
+    """The rest pose of a fall that has nearly come to rest on one or two contacts: their
+    equilibrium pose by Newton, if it lies within one fall step, no higher, with nothing
+    violated, and the contacts there hold the object: ``(q_rest, found)``."""
+    if not 0 < keys.shape[0] < 3:
+        return q, False
+    q_rest, ok = newton_held(model, q, h, keys, solves)
+    if not ok or q_rest[1] > q[1] + model.tol:
+        return q, False
+    if np.abs((q_rest - q) / model.scale).max() > model.fall_step:
+        return q, False
+    if geometry_violation(model, q_rest, h, keys) > model.tol:
+        return q, False
+    if not held_here(model, q_rest, h, 1e-12 * model.weight):
+        return q, False
+    return q_rest, True
+
+
+@njit(cache=True)
+def at_edge_end(model, world: np.ndarray, key: np.ndarray) -> bool:
+    """Whether contact ``key``'s point lies within two tolerances of an end of its edge."""
+    _, _, _, T, L = contact_rows(world, model.n_object, model.n_vertices, key.reshape(1, 4))
+    return min(T[0], 1.0 - T[0]) * L[0] <= 2.0 * model.tol
+
+
+@njit(cache=True)
+def fall_options(model, world: np.ndarray, keys: np.ndarray) -> list:
+    """Contact sets a fall step may keep: at a vertex-vertex touch any one candidate's
+    half-plane suffices locally, or all candidates at once (always admissible). An edge
+    contact at the very end of its hand edge may slide off it: then its twin (the hand
+    vertex there, on the object's edge), which detection folds into it, carries the slide
+    on."""
+    options = contact_sets.choices(model, world, keys)
+    if len(options) > 1:
+        options.append(keys)
+    ends = contact_sets.empty()
+    for i in range(keys.shape[0]):
+        k = keys[i]
+        if k[0] != SUPPORT and k[1] == EDGE and at_edge_end(model, world, k):
+            ends = contact_sets.with_key(ends, k)
+    if ends.shape[0] > 0:
+        twins = touching(model, world, ends)
+        if not contact_sets.equal(twins, keys):
+            for choice in contact_sets.choices(model, world, twins):
+                options.append(choice)
+    return options
+
+
+@njit(cache=True)
+def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
+    """Quasi-static fall from ``q`` at hand ``h`` (path parameter ``s``): ``(q, moved)``,
+    the rest pose and whether the object moved at all. Logs the fall's start and end."""
+    events.append((FALL_START, s, contact_sets.empty()))
+    moved = False
+    for _ in range(model.max_iterations):
+        world = place(model, q, h)
+        keys = touching(model, world, contact_sets.empty())
+        # Held only to rounding: near the boundary of equilibrium a residual within the usual
+        # tolerance still leaves a way down, which the descent below finds.
+        if held(model, world, q[:2], keys, 1e-12 * model.weight, MAX_FORCE):
+            events.append((FALL_END, s, keys))
+            return q, moved
+        q_rest, found = cradle(model, q, h, keys, solves)
+        if found:
+            q, moved = q_rest, True  # held exactly there: the next pass ends the fall
+            continue
+        # Of the options, the step that lowers the potential energy most.
+        best, best_event, have_best = q, False, False
+        for choice in fall_options(model, world, keys):
+            a, E = descent(model, world, q, choice)
+            norm_a = math.sqrt(dense.dot(a, a))
+            if norm_a < 1e-13:
+                continue  # gravity is balanced to first order by this choice
+            # backtracking: near a stable rest (a cradle) a full step overshoots
+            d = a * model.scale / norm_a * model.fall_step
+            for _ in range(HALVINGS):
+                q_new, at_event, stepped = fall_step(model, q, h, E, d, solves)
+                if q_new[1] < q[1] - 1e-12 * model.size:
+                    break
+                if at_event and q_new[1] <= q[1] and np.any(q_new != q):
+                    break  # a nearly flat way down that reaches a new contact
+                if at_event and not stepped:
+                    # No admissible point along d at all: the bisection already tried
+                    # every step a halved d would (d/2, d/4, ... down to rounding).
+                    break
+                d = 0.5 * d
+            if not have_best or q_new[1] < best[1]:
+                best, best_event, have_best = q_new, at_event, True
+        # A step that ends on an event (a new contact, an edge's end) changes the contacts
+        # for the next step however short it is; otherwise a negligible drop means rest.
+        if not have_best or (
+            not (best_event and np.any(best != q)) and best[1] > q[1] - 1e-12 * model.size
+        ):
+            events.append((FALL_END, s, keys))  # no admissible descent lowers the object
+            return q, moved
+        q, moved = best, True
+    raise WorkLimitError("fall did not come to rest")
+
+
+@njit(cache=True)
+def fall_if_unheld(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
+    """Fall to rest when the touching contacts cannot hold the object: ``(q, fell)``; a fall
+    that found no way down leaves no events."""
+    if held_here(model, q, h, model.ftol):
+        return q, False
+    q_fallen, moved = fall(model, q, h, s, events, solves)
+    if not moved:
+        events.pop()
+        events.pop()
+    return q_fallen, moved
+
+
+@njit(cache=True)
+def nudge(model, q, s, E, v, h0, dh, s_end, solves):
+    """Smallest step along ``E`` (geometrically consistent) after which the touching contacts
+    can no longer hold the object: ``(s, q, found)``, not found within one step."""
+    ds = 1e-10
+    while ds <= model.max_step and s + ds <= s_end:
+        h = h0 + (s + ds) * dh
+        q_new, ok = newton(model, q + v * ds, h, E, solves)
+        if not ok or geometry_violation(model, q_new, h, E) > model.tol:
+            return s, q, False
+        if not held_here(model, q_new, h, model.ftol):
+            return s + ds, q_new, True
+        ds *= 4.0
+    return s, q, False
+
+
+@njit(cache=True)
+def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
+    """Nudge the hand past the boundary of equilibrium (:func:`nudge`) and let the object
+    fall to rest there: ``(s, q, found)``."""
+    s_new, q_new, found = nudge(model, q, s, E, v, h0, dh, s_end, solves)
+    if not found:
+        return s, q, False
+    q_rest, _ = fall(model, q_new, h0 + s_new * dh, s_new, events, solves)
+    return s_new, q_rest, True

@@ -1,0 +1,124 @@
+"""The object's motion for a hand velocity: the active set and the least-motion twist
+(section 3.1, eqs. 19-24).
+
+The velocity LP ``min W v_y s.t. V v >= xi`` and its dual, the force LP, give the object
+twist and the contact forces (:mod:`grasp_env.sim.velocity_lp`, or HiGHS on the reference
+path). The contacts with positive force, and the touching ones the hand pushes on, form the
+active set ``E``; of the optimal twists the least-motion one is kept
+(:mod:`grasp_env.sim.least_norm`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, objmode
+
+from grasp_env.sim import contact_sets, dense, least_norm, velocity_lp
+from grasp_env.sim.hand import contact_xi
+from grasp_env.sim.placement import contact_rows
+from grasp_env.sim.pose import constraint_matrix
+
+#: Outcomes of a plan: the object moves with the hand, the hand cannot move on, the object
+#: falls.
+MOVE, JAM, FALL = 0, 1, 2
+
+
+def reference_motion_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> tuple:
+    """The motion LP through HiGHS (:func:`grasp_env.mechanics.motion_lp`), as
+    ``(status, v, lam, value)`` with :mod:`grasp_env.sim.velocity_lp`'s status codes."""
+    from grasp_env.mechanics import motion_lp  # the analysis layer sits above the kernels
+
+    res = motion_lp(V, xi, weight, "highs")
+    if res.status == "optimal":
+        return velocity_lp.OPTIMAL, res.velocity, res.forces, res.value
+    status = velocity_lp.INFEASIBLE if res.status == "infeasible" else velocity_lp.UNBOUNDED
+    return status, np.zeros(3), np.zeros(len(xi)), res.value
+
+
+@njit(cache=True)
+def motion_lp(model, V: np.ndarray, xi: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, float]:
+    """``min W v_y s.t. V v >= xi`` and its dual: ``(status, v, lam, value)``. The exact basis
+    enumeration, or HiGHS on the reference path and wherever the enumeration cannot decide
+    in double precision."""
+    if not model.reference_lp:
+        cost = np.array([0.0, model.weight, 0.0])
+        status, v, lam, value, _ = velocity_lp.solve(V, xi, cost)
+        if status != velocity_lp.UNDECIDED:
+            return status, v, lam, value
+    with objmode(status="int64", v="float64[:]", lam="float64[:]", value="float64"):
+        status, v, lam, value = reference_motion_lp(V, xi, model.weight)
+    return status, v, lam, value
+
+
+@njit(cache=True)
+def solve_lp(
+    model, world: np.ndarray, q: np.ndarray, h: np.ndarray, dh: np.ndarray, keys: np.ndarray
+) -> tuple[int, float, np.ndarray, np.ndarray]:
+    """The motion of the object touching ``keys`` for hand velocity ``dh``:
+    ``(outcome, value, E, v)`` with the potential-energy rate, the active set and the
+    least-motion object twist (per unit of the path parameter)."""
+    m = keys.shape[0]
+    L = model.length
+    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
+    V = constraint_matrix(P, N, q[:2])
+    xi = contact_xi(model, h, dh, keys, P, N)
+    Vl = V * model.per_length
+    if m > 0 and np.all(xi == 0.0):
+        # The hand moves no contact (the object on the support, the fingers in free space):
+        # v = 0 is optimal, with every contact tight, whenever the contacts hold the object
+        # exactly; only the borderline cases need the LP.
+        if dense.nnls(Vl.T.copy(), model.gravity)[1] <= 1e-12 * model.weight:
+            return MOVE, 0.0, keys, np.zeros(3)
+    status, v_lp, lam, value = motion_lp(model, Vl, xi / L)
+    if status == velocity_lp.INFEASIBLE:
+        return JAM, 0.0, keys, np.zeros(3)
+    if status == velocity_lp.UNBOUNDED:
+        return FALL, 0.0, keys, np.zeros(3)
+    pos = lam > model.ftol
+    Vs = V * model.scale
+    w, ok = least_norm.least_norm(
+        Vs[pos].copy(), xi[pos] / L, Vs[~pos].copy(), xi[~pos] / L, 1e-9
+    )
+    if ok:
+        w = w * L
+    else:
+        w = v_lp * L * model.per_length / model.scale
+    v = w * model.scale
+    slack = dense.matvec(V, v) - xi
+    bound = 1e-9 * max(L, np.abs(xi).max() if m > 0 else 0.0)
+    tight = pos | (slack <= bound)
+    return MOVE, value * L, keys[tight].copy(), v
+
+
+@njit(cache=True)
+def plan(
+    model, world: np.ndarray, q: np.ndarray, h: np.ndarray, dh: np.ndarray, keys: np.ndarray,
+    allow_fall: bool,
+) -> tuple[int, np.ndarray, np.ndarray]:  # fmt: skip
+    """Active set and least-motion twist for hand velocity ``dh``: ``(outcome, E, v)``.
+
+    At a vertex-vertex touch each choice of candidate contacts
+    (:func:`grasp_env.sim.contact_sets.choices`) is tried, and the one with the lowest
+    potential-energy rate (the object's choice, eq. 19) is kept; all candidates at once
+    (always admissible) is the last choice. With ``allow_fall`` False (a fall just found no
+    way down) choices that would fall are skipped.
+    """
+    options = contact_sets.choices(model, world, keys)
+    if len(options) > 1:
+        options.append(keys)
+    found = False
+    best_value = np.inf
+    best_E, best_v = keys, np.zeros(3)
+    for choice in options:
+        outcome, value, E, v = solve_lp(model, world, q, h, dh, choice)
+        if outcome == FALL:
+            if allow_fall:
+                return FALL, keys, np.zeros(3)
+            continue
+        if outcome == JAM:
+            continue
+        if not found or value < best_value - 1e-12 * model.weight * model.length:
+            found, best_value, best_E, best_v = True, value, E, v
+    if not found:
+        return JAM, keys, np.zeros(3)
+    return MOVE, best_E, best_v
