@@ -144,15 +144,6 @@ def local_geometry(scene: Scene) -> LocalGeometry:
     return cache
 
 
-def broad_phase(pl: Placement, margin: float) -> list[int]:
-    """Hand bodies (1..3) whose bounding box comes within ``margin`` of the object's, plus the
-    support (0) when the object's lowest point is within ``margin`` of y = 0."""
-    return [int(b) for b in clearance.near_bodies(pl.world, pl.local.n_object, margin)]
-
-
-_NO_KEYS = np.zeros((0, 4), dtype=np.int64)
-
-
 def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[ContactKey]:
     """Contacts at a placement: vertex-edge pairs with ``|gap| <= tol`` whose edge separates
     the bodies near the vertex, edge contacts first
@@ -163,7 +154,11 @@ def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[Contac
     it is in ``exclude`` (a contact the simulator has just released: its twin takes over).
     """
     local = pl.local
-    ex = np.array(list(exclude), dtype=np.int64).reshape(-1, 4) if exclude else _NO_KEYS
+    ex = (
+        np.array(list(exclude), dtype=np.int64).reshape(-1, 4)
+        if exclude
+        else np.zeros((0, 4), dtype=np.int64)
+    )
     keys = detection.detect(pl.world, local.n_object, local.n_vertices, tol, ex)
     return [tuple(k) for k in keys.tolist()]
 
@@ -194,29 +189,3 @@ def min_gap(
     return float(gap), (
         None if key[0] < 0 else (int(key[0]), int(key[1]), int(key[2]), int(key[3]))
     )
-
-
-def separations(pl: Placement, bodies) -> dict[int, float]:
-    """Separating-axis distance of the object from each hand body in ``bodies``
-    (:func:`grasp_env.sim.clearance.separation`)."""
-    local = pl.local
-    return {
-        b: float(clearance.separation(pl.world, local.n_object, local.n_vertices, b))
-        for b in bodies
-        if b != geo.SUPPORT
-    }
-
-
-def max_overlap(pl: Placement, bodies: list[int]) -> tuple[float, int | None]:
-    """Deepest overlap of the object with a hand body in ``bodies`` (separating-axis test).
-
-    Catches what :func:`min_gap` cannot: convex polygons whose edges cross with no vertex of
-    either inside the other (a sharp corner pushed through a thin finger). Returns
-    ``(depth, body)``: the largest over the bodies of minus :func:`separations` (<= 0 when
-    apart), or ``(-inf, None)`` for no hand body.
-    """
-    local = pl.local
-    depth, body = clearance.max_overlap(
-        pl.world, local.n_object, local.n_vertices, np.array(bodies, dtype=np.int64)
-    )
-    return float(depth), (None if body < 0 else int(body))

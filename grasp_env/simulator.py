@@ -23,6 +23,8 @@ velocity LP: the object falls along the steepest admissible descent of its poten
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from grasp_env import contacts as ct
@@ -32,7 +34,7 @@ from grasp_env import mechanics as mech
 from grasp_env.errors import SimulationError, SolverError, WorkLimitError
 from grasp_env.scene import Scene, load_scene
 from grasp_env.sim import events as ev
-from grasp_env.sim import hand, move
+from grasp_env.sim import move
 from grasp_env.sim.equilibrium import MAX_FORCE
 from grasp_env.sim.model import Model
 from grasp_env.state import Event, State
@@ -110,6 +112,8 @@ class Simulator:
         self.fall_step = float(fall_step) * size
         self._solves = np.zeros(1, dtype=np.int64)  # pose solves of the current call
         self.model = self._model(size)
+        self._joint_low, self._joint_high = self.scene.joint_limits.T.copy()
+        self._last: tuple = (None, _NO_KEYS)  # the last state made, and its contact keys
         self.rho = self.model.rho
         self.newton_tol = self.model.newton_tol
 
@@ -207,20 +211,19 @@ class Simulator:
             h1[:3] = _finite_vector(palm, 3, "palm")
         if fingers is not None:
             target = _finite_vector(fingers, 2, "fingers")
-            lim = self.scene.joint_limits
-            clipped = np.clip(target, lim[:, 0], lim[:, 1])
-            if np.any(clipped != target):
+            clipped = np.minimum(np.maximum(target, self._joint_low), self._joint_high)
+            if (clipped != target).any():
                 events.append(Event("joint_limit", 1.0))
             h1[3:] = clipped
         model = self.model
-        s_end, blocked = _compiled(hand.support_limit, model, h0, h1)
-        known = np.array([c.key for c in state.contacts], dtype=np.int64).reshape(-1, 4)
+        if state is self._last[0]:
+            known = self._last[1]  # a state this simulator made: its keys are at hand
+        else:
+            known = np.array([c.key for c in state.contacts], dtype=np.int64).reshape(-1, 4)
         q0 = state.object_pose.copy()
         self._solves[0] = 0
         try:
-            q, s_reached, jammed, log = _compiled(
-                move.move, model, q0, h0, h1, s_end, known, True, self._solves
-            )
+            out = _compiled(move.move_hand, model, q0, h0, h1, known, True, self._solves)
         except WorkLimitError:
             raise  # the retry would do the same work again, and more
         except (SimulationError, SolverError) as first:
@@ -231,9 +234,7 @@ class Simulator:
                 reference_lp=True, max_step=model.max_step / 4, fall_step=model.fall_step / 4
             )
             try:
-                q, s_reached, jammed, log = _compiled(
-                    move.move, careful, q0, h0, h1, s_end, _NO_KEYS, False, self._solves
-                )
+                out = _compiled(move.move_hand, careful, q0, h0, h1, _NO_KEYS, False, self._solves)
             except WorkLimitError:
                 raise
             except (SimulationError, SolverError) as second:
@@ -241,18 +242,25 @@ class Simulator:
                     f"move failed ({first}) and again on the reference path with smaller "
                     f"increments ({second})"
                 ) from second
-        events.extend(_events(log))
+        q, h, s_reached, s_end, blocked, jammed, log, untouched, rest = out
+        if log:
+            events.extend(_events(log))
         # The hand is blocked by the support only if it got there (a jam may stop it first).
         if blocked and not (jammed and s_reached < s_end):
             events.append(Event("hand_blocked", s_end))
         else:
             blocked = False
-        h = h0 + s_reached * (h1 - h0)
-        return self._make_state(q, h, events, jammed=jammed, blocked=blocked)
+        if untouched:  # the object and its contacts are as they were
+            return self._new_state(q, h, state.contacts, known, events, jammed, blocked)
+        return self._state(q, h, rest, events, jammed, blocked)
 
     # ------------------------------------------------------------------ output
-    def _make_state(self, q, h, events, jammed=False, blocked=False) -> State:
-        keys, P, N, gaps, forces = move.at_rest(self.model, q, h)
+    def _make_state(self, q: np.ndarray, h: np.ndarray, events: list[Event]) -> State:
+        return self._state(q, h, move.at_rest(self.model, q, h), events)
+
+    def _state(self, q, h, rest, events, jammed=False, blocked=False) -> State:
+        """A :class:`State` from the compiled :func:`grasp_env.sim.move.at_rest` output."""
+        keys, P, N, gaps, forces = rest
         contacts = tuple(
             ct.Contact(
                 body=geo.BODY_NAMES[key[0]],
@@ -266,7 +274,13 @@ class Simulator:
             )
             for i, key in enumerate(keys.tolist())
         )
-        return State(self.scene, q.copy(), h.copy(), contacts, jammed, blocked, tuple(events))
+        return self._new_state(q, h, contacts, keys, events, jammed, blocked)
+
+    def _new_state(self, q, h, contacts, keys, events, jammed, blocked) -> State:
+        """The State, remembered with its contact keys for the next move from it."""
+        state = State(self.scene, q, h, contacts, jammed, blocked, tuple(events))
+        self._last = (state, keys)
+        return state
 
 
 def _compiled(kernel, *args):
@@ -292,6 +306,10 @@ def _events(log: list) -> list[Event]:
 
 
 def _finite_vector(value, size: int, name: str) -> np.ndarray:
+    """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``."""
+    if type(value) is np.ndarray and value.dtype.kind == "f" and value.shape == (size,):
+        if np.abs(value).max() < math.inf:  # the common case; NaN compares False
+            return value.astype(float)
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):

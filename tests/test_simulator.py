@@ -1429,9 +1429,7 @@ def test_failed_retry_raises_simulation_error(monkeypatch: pytest.MonkeyPatch) -
     sim = Simulator(scene_of("fig13"), lp_solver="highs")
     start = sim.reset()
     monkeypatch.setattr(mechanics, "motion_lp", broken)
-    with pytest.raises(
-        grasp_env.SimulationError, match=r"highs path down.*again.*highs path down"
-    ):
+    with pytest.raises(grasp_env.SimulationError, match=r"highs path down.*again.*highs path down"):
         sim.move_hand(start, fingers=(-HALF_PI + 0.45, -HALF_PI - 0.45))
 
 

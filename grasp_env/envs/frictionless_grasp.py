@@ -43,6 +43,8 @@ RANDOM_PALM_XY, RANDOM_PALM_THETA, RANDOM_FINGER = 0.02, 0.05, 0.1
 RANDOM_START_TRIES = 50
 
 BODIES = geo.BODY_NAMES
+#: Signs that turn the two finger actions into closing motions.
+_CLOSING = np.array([1.0, -1.0])
 _STARTS = ("scene", "preliftoff", "random")
 _OPTION_KEYS = ("scene", "palm", "fingers")
 _REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
@@ -441,7 +443,14 @@ class FrictionlessGraspEnv(gym.Env):
     def _check_action(self, action: Any) -> np.ndarray:
         """The action as floats clipped into [-1, 1]; refused (``ValueError``) unless it is
         finite real numbers of the action space's shape."""
-        return np.clip(_vector(action, "action", self.action_space.shape[0]), -1.0, 1.0)
+        size = self.action_space.shape[0]
+        if type(action) is np.ndarray and action.dtype.kind == "f" and action.shape == (size,):
+            a = action.astype(float)  # the common case, checked as _vector would
+            if not np.abs(a).max() < math.inf:  # NaN compares False
+                raise ValueError(f"action must be finite, got {_short(action)}")
+        else:
+            a = _vector(action, "action", size)
+        return np.minimum(np.maximum(a, -1.0), 1.0)
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -460,6 +469,7 @@ class FrictionlessGraspEnv(gym.Env):
         super().reset(seed=seed)
         self.np_random.bit_generator.state = rng.bit_generator.state  # the draws made above
         self._sim, self._state, self._steps = sim, state, 0
+        self._object_obs(state.scene)
         self._analysis = analysis
         self._y0 = float(state.object_pose[1])
         self._left_support = not self._analysis["on_support"]
@@ -541,7 +551,7 @@ class FrictionlessGraspEnv(gym.Env):
         self._steps += 1
         try:
             new = self._simulate(state, a)
-            if not (np.all(np.isfinite(new.object_pose)) and np.all(np.isfinite(new.hand))):
+            if not (np.isfinite(new.object_pose).all() and np.isfinite(new.hand).all()):
                 raise SimulationError(
                     f"non-finite state: object {new.object_pose}, hand {new.hand}"
                 )
@@ -598,7 +608,7 @@ class FrictionlessGraspEnv(gym.Env):
     def _simulate(self, state: State, a: np.ndarray) -> State:
         """:meth:`simulate_action` of a checked action (floats in [-1, 1])."""
         h = state.hand
-        fingers = h[3:] + self.max_finger_step * a[:2] * np.array([1.0, -1.0])
+        fingers = h[3:] + self.max_finger_step * a[:2] * _CLOSING
         palm = None
         if self.palm_control:
             scene = self._sim.scene
@@ -625,7 +635,8 @@ class FrictionlessGraspEnv(gym.Env):
             "form_closure": closure,
             "grip": grip,
             "success": closure and not on_support,
-            "out_of_reach": bool(np.abs(p_P[:2]).max() > reach),
+            "out_of_reach": max(abs(p_P[0]), abs(p_P[1])) > reach,
+            "in_palm_frame": p_P,
         }
 
     def _potential(self, state: State) -> float:
@@ -644,14 +655,9 @@ class FrictionlessGraspEnv(gym.Env):
         phi = 0.0 if dropped else self._potential(state)
         lift = self.gamma * phi - self._phi
         self._phi = phi
-        terms = {
-            "form_closure": bonus,
-            "grip": grip,
-            "lift": lift,
-            "drop": -weights["drop"] if dropped else 0.0,
-            "ctrl": -weights["ctrl"] * float((a * a).sum()),
-        }
-        reward_info = {f"reward_{k}": float(v) for k, v in terms.items()}
+        drop = -weights["drop"] if dropped else 0.0
+        ctrl = -weights["ctrl"] * float((a * a).sum())
+        reward_info = dict(zip(_REWARD_KEYS, map(float, (bonus, grip, lift, drop, ctrl))))
         return float(sum(reward_info.values())), reward_info
 
     # ------------------------------------------------------------------ observation / info
@@ -660,33 +666,38 @@ class FrictionlessGraspEnv(gym.Env):
         scene = state.scene
         w, weight = scene.palm.width, scene.object_weight
         x0 = scene.object.start_pose[0]
-        x_p, y_p, th_p, q1, q2 = state.hand
-        x_o, y_o, th_o = state.object_pose
-        p_P = _in_palm_frame(state)
-        n = self.max_vertices
-        verts = np.zeros((n, 2))
-        mask = np.zeros(n)
-        v = scene.object.vertices_B / w
-        verts[: len(v)], mask[: len(v)] = v, 1.0
-        contacts = np.zeros((len(BODIES), 2))
-        for c in state.contacts:
-            row = contacts[BODIES.index(c.body)]
-            row[0] += 1.0
-            row[1] += c.force / weight
+        x_p, y_p, th_p, q1, q2 = state.hand.tolist()
+        x_o, y_o, th_o = state.object_pose.tolist()
+        p_P = an["in_palm_frame"]
         grip = an["grip"] / weight if an["form_closure"] else GRIP_MAX
-        obs = np.concatenate(
-            [
-                [(x_p - x0) / w, y_p / w, th_p, q1, q2],
-                [(x_o - x0) / w, y_o / w, math.sin(th_o), math.cos(th_o)],
-                [p_P[0] / w, p_P[1] / w, math.sin(p_P[2]), math.cos(p_P[2])],
-                verts.ravel(),
-                mask,
-                contacts.ravel(),
-                [float(an["form_closure"]), grip if math.isfinite(grip) else GRIP_MAX],
-                [(y_o - self._y0) / w],
-            ]
+        obs = self._obs_buffer  # the object's padded vertices and mask are set at reset
+        obs[:13] = (
+            (x_p - x0) / w, y_p / w, th_p, q1, q2,
+            (x_o - x0) / w, y_o / w, math.sin(th_o), math.cos(th_o),
+            p_P[0] / w, p_P[1] / w, math.sin(p_P[2]), math.cos(p_P[2]),
+        )  # fmt: skip
+        contacts = obs[self._contacts_at :]
+        contacts[:] = 0.0
+        for c in state.contacts:
+            k = 2 * BODIES.index(c.body)
+            contacts[k] += 1.0
+            contacts[k + 1] += c.force / weight
+        contacts[-3:] = (
+            float(an["form_closure"]),
+            grip if math.isfinite(grip) else GRIP_MAX,
+            (y_o - self._y0) / w,
         )
-        return np.clip(obs, self._obs_low, self._obs_high).astype(np.float32)
+        return np.minimum(np.maximum(obs, self._obs_low), self._obs_high).astype(np.float32)
+
+    def _object_obs(self, scene: Scene) -> None:
+        """The observation's per-episode part: the object's vertices (body frame, in palm
+        widths) padded to ``max_vertices``, and their mask."""
+        n = self.max_vertices
+        v = scene.object.vertices_B / scene.palm.width
+        obs = self._obs_buffer = np.zeros(len(self._obs_low))
+        obs[13 : 13 + 2 * len(v)] = v.ravel()
+        obs[13 + 2 * n : 13 + 2 * n + len(v)] = 1.0
+        self._contacts_at = 13 + 3 * n
 
     def _info(self, state: State, dropped: bool, reward_info: dict) -> dict[str, Any]:
         an = self._analysis
@@ -789,12 +800,13 @@ class RestoreOnError(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 
 # ---------------------------------------------------------------------- helpers
-def _in_palm_frame(state: State) -> np.ndarray:
+def _in_palm_frame(state: State) -> tuple[float, float, float]:
     """Object pose ``(x, y, theta)`` in the palm frame."""
-    x_p, y_p, th_p = state.palm_pose
-    d = state.object_pose[:2] - (x_p, y_p)
+    x_p, y_p, th_p = state.hand[:3].tolist()
+    x_o, y_o, th_o = state.object_pose.tolist()
+    dx, dy = x_o - x_p, y_o - y_p
     c, s = math.cos(th_p), math.sin(th_p)
-    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], state.object_pose[2] - th_p])
+    return (c * dx + s * dy, -s * dx + c * dy, th_o - th_p)
 
 
 def _placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim.placement import SUPPORT, world_points
+from grasp_env.sim.placement import SUPPORT
 
 #: Points of the scan that brackets the first support crossing of a move.
 SCAN = 65
@@ -47,30 +47,76 @@ def contact_xi(
 
 @njit(cache=True)
 def lowest_point(model, h: np.ndarray) -> float:
-    """Lowest height of any hand vertex at hand configuration ``h``."""
-    q = np.zeros(3)
-    world = world_points(model.points, model.body, model.n_vertices, model.half, q, h)
+    """Lowest height of any hand vertex at hand configuration ``h`` (the hand rows of
+    :func:`grasp_env.sim.placement.world_points`, heights only)."""
+    s = math.sin(h[2])
     low = np.inf
-    for i in range(model.n_object, model.n_vertices):
-        low = min(low, world[i, 1])
+    for b in range(1, 4):
+        if b == 1:
+            oy, angle = h[1], h[2]
+        elif b == 2:
+            oy, angle = h[1] - s * model.half, h[2] + h[3]
+        else:
+            oy, angle = h[1] + s * model.half, h[2] + h[4]
+        sb, cb = math.sin(angle), math.cos(angle)
+        first = model.n_object + 4 * (b - 1)
+        for i in range(first, first + 4):
+            low = min(low, sb * model.points[i, 0] + cb * model.points[i, 1] + oy)
     return low
+
+
+@njit(cache=True)
+def vertex_speeds(model, dh: np.ndarray) -> np.ndarray:
+    """A bound on how far any vertex of each hand body (palm, finger 1, finger 2) moves
+    over the move ``dh``: its frame origin's travel (the joints ride the palm's turn) plus
+    its turn times ``reach``."""
+    turn = abs(dh[2])
+    slide = math.hypot(dh[0], dh[1])
+    joints = slide + turn * model.half
+    return np.array([
+        slide + turn * model.reach[0],
+        joints + abs(dh[2] + dh[3]) * model.reach[1],
+        joints + abs(dh[2] + dh[4]) * model.reach[2],
+    ])  # fmt: skip
+
+
+@njit(cache=True)
+def max_drop(model, dh: np.ndarray) -> float:
+    """A bound on how far any hand vertex can descend over the move ``dh``: the palm's
+    origin moves by ``|dh_y|``, the joints by at most ``half |dh_theta|`` more, and each body
+    turns its vertices (within ``reach`` of its frame origin) by its own angle."""
+    turn = abs(dh[2])
+    joints = abs(dh[1]) + turn * model.half
+    drop = abs(dh[1]) + turn * model.reach[0]
+    drop = max(drop, joints + abs(dh[2] + dh[3]) * model.reach[1])
+    return max(drop, joints + abs(dh[2] + dh[4]) * model.reach[2])
 
 
 @njit(cache=True)
 def support_limit(model, h0: np.ndarray, h1: np.ndarray) -> tuple[float, bool]:
     """Largest ``s`` in [0, 1] before a hand vertex enters the support, and whether the move
-    is cut short. Hand vertex heights are smooth in ``s``: a scan of :data:`SCAN` points
-    brackets the first crossing below ``-tol``, and bisection locates it to ``tol``."""
+    is cut short.
+
+    Hand vertex heights are smooth in ``s``: the first of :data:`SCAN` evenly spaced points
+    below ``-tol`` brackets the crossing, and bisection locates it to ``tol``. Points that
+    :func:`max_drop` keeps above ``-tol`` (from the last point evaluated) are not
+    evaluated, so a hand well clear of the support costs one evaluation.
+    """
     dh = h1 - h0
     tol = model.tol
-    lo = hi = -1.0
-    for k in range(1, SCAN):
-        s = k / (SCAN - 1)
-        if lowest_point(model, h0 + s * dh) < -tol:
-            lo, hi = (k - 1) / (SCAN - 1), s
+    n = SCAN - 1
+    per_point = max_drop(model, dh) / n  # how far a vertex may descend between points
+    k = 0  # the next point to evaluate
+    while True:
+        low = lowest_point(model, h0 + (k / n) * dh)
+        if k > 0 and low < -tol:
             break
-    if hi < 0.0:
-        return 1.0, False
+        # the next `clear` points cannot lie below -tol
+        clear = float(n) if per_point == 0.0 else min(n, (low + tol) / per_point * (1.0 - 1e-9))
+        k += 1 + max(0, int(clear))  # clear >= 0 is floored
+        if k > n:
+            return 1.0, False
+    lo, hi = (k - 1) / n, k / n
     while hi - lo > 1e-16 and lowest_point(model, h0 + lo * dh) > tol:  # touching, not above
         mid = 0.5 * (lo + hi)
         if lowest_point(model, h0 + mid * dh) < 0.0:

@@ -76,9 +76,7 @@ def solve_lp(
         return FALL, 0.0, keys, np.zeros(3)
     pos = lam > model.ftol
     Vs = V * model.scale
-    w, ok = least_norm.least_norm(
-        Vs[pos].copy(), xi[pos] / L, Vs[~pos].copy(), xi[~pos] / L, 1e-9
-    )
+    w, ok = least_norm.least_norm(Vs[pos].copy(), xi[pos] / L, Vs[~pos].copy(), xi[~pos] / L, 1e-9)
     if ok:
         w = w * L
     else:

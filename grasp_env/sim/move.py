@@ -27,11 +27,18 @@ from numba import njit
 
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import contact_sets, motion
+from grasp_env.sim.clearance import separation
 from grasp_env.sim.equilibrium import determined, held, rest_forces
 from grasp_env.sim.events import (
-    EDGE_TO_TIP, JAM, LOST_CONTACT, NEW_CONTACT, NO_CHECK, TIP_TO_EDGE,
+    EDGE_TO_TIP,
+    JAM,
+    LOST_CONTACT,
+    NEW_CONTACT,
+    NO_CHECK,
+    TIP_TO_EDGE,
 )  # fmt: skip
 from grasp_env.sim.fall import fall, fall_if_unheld, held_here, nudge_and_fall, touching
+from grasp_env.sim.hand import support_limit, vertex_speeds
 from grasp_env.sim.placement import contact_rows, place
 from grasp_env.sim.step import locate, sweep_limit, try_step
 
@@ -71,6 +78,49 @@ def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
     keys = touching(model, world, contact_sets.empty())
     if not held(model, world, q[:2], keys, model.ftol, np.inf):
         raise SimulationError("jam at s =", s, "with the object neither held nor falling")
+
+
+@njit(cache=True)
+def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known: np.ndarray):
+    """Whether a move ``dh`` from ``h0`` leaves alone an object resting on the support
+    alone: every hand body stays farther from it than the checks look (``0.05 size + 10
+    tol``) all along. A body's separating distance along its best axis changes by at most
+    how far its vertices move (:func:`grasp_env.sim.hand.vertex_speeds`)."""
+    if not contact_sets.all_on_support(known):
+        return False
+    world = place(model, q, h0)
+    travel = vertex_speeds(model, dh)
+    margin = 0.05 * model.size + 10.0 * model.tol
+    for b in range(1, 4):
+        if separation(world, model.n_object, model.n_vertices, b) <= travel[b - 1] + margin:
+            return False
+    return True
+
+
+@njit(cache=True)
+def move_hand(
+    model, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray, use_known: bool,
+    solves: np.ndarray,
+):  # fmt: skip
+    """A straight-line hand move from ``h0`` toward ``h1``, stopped short where a hand vertex
+    would enter the support, and the state it ends in, in one call: ``(q, h, s, s_end,
+    blocked, jammed, events, untouched, rest)``, with the support limit ``s_end`` (``blocked``
+    when it cuts the move short), the ``s`` reached and :func:`at_rest` of the final state.
+
+    ``untouched``: the object rested on the support alone (``known``, when ``use_known``) and
+    no hand body came near it (:func:`hand_stays_clear`), so nothing about it changed; the
+    move loop and ``rest`` (then empty) are skipped.
+    """
+    s_end, blocked = support_limit(model, h0, h1)
+    dh = h1 - h0
+    if use_known and hand_stays_clear(model, q, h0, s_end * dh, known):
+        h = h0 + s_end * dh
+        nothing = np.zeros((0, 2))
+        rest = (contact_sets.empty(), nothing, nothing, np.zeros(0), np.zeros(0))
+        return q.copy(), h, s_end, s_end, blocked, False, new_log(), True, rest
+    q, s, jammed, events = move(model, q, h0, h1, s_end, known, use_known, solves)
+    h = h0 + s * dh
+    return q, h, s, s_end, blocked, jammed, events, False, at_rest(model, q, h)
 
 
 @njit(cache=True)
@@ -253,7 +303,6 @@ def _advance(model, q, h0, dh, s_end, known, use_known, events, solves):
         stop_at_jam(model, q, h, s)
         return q, s, True, events
     raise WorkLimitError("no progress after", model.max_iterations, "increments, at s =", s)
-
 
 
 @njit(cache=True)

@@ -22,10 +22,17 @@ from grasp_env.errors import WorkLimitError
 from grasp_env.sim import clearance, consistency, contact_sets, pose
 from grasp_env.sim.contact_sets import NONE
 from grasp_env.sim.events import (
-    EDGE_TO_TIP, EQUILIBRIUM, JAM, LOST_CONTACT, NEW_CONTACT, NO_CHECK, OVERLAP, TIP_TO_EDGE,
+    EDGE_TO_TIP,
+    EQUILIBRIUM,
+    JAM,
+    LOST_CONTACT,
+    NEW_CONTACT,
+    NO_CHECK,
+    OVERLAP,
+    TIP_TO_EDGE,
 )  # fmt: skip
+from grasp_env.sim.hand import vertex_speeds
 from grasp_env.sim.placement import EDGE, contact_rows, place
-
 
 # ---------------------------------------------------------------------------------------------
 # The pose on a contact set
@@ -104,9 +111,7 @@ def solve_pose(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.n
 @njit(cache=True)
 def geometry_violation(model, q: np.ndarray, h: np.ndarray, E: np.ndarray) -> float:
     """Penetration, overlap or a contact past its edge's end, at worst, for ``E``."""
-    return consistency.geometry_violation(
-        place(model, q, h), model.n_object, model.n_vertices, E
-    )
+    return consistency.geometry_violation(place(model, q, h), model.n_object, model.n_vertices, E)
 
 
 @njit(cache=True)
@@ -252,14 +257,7 @@ def sweep_limit(
     on how fast its vertices approach the object's (conservative advancement). Only the
     step's end is checked for penetration, so this keeps thin fingers from tunnelling; short
     moves (most env steps) need no distances at all."""
-    turn = abs(dh[2])
-    slide = np.hypot(dh[0], dh[1])
-    base = slide + turn * model.half  # palm origin / joints
-    speed = np.array([
-        slide + turn * model.reach[0],
-        base + abs(dh[2] + dh[3]) * model.reach[1],
-        base + abs(dh[2] + dh[4]) * model.reach[2],
-    ])  # fmt: skip
+    speed = vertex_speeds(model, dh)
     # the object moves too: twice its predicted speed, for the path's curvature
     obj = 2.0 * (np.hypot(v[0], v[1]) + abs(v[2]) * model.size)
     if (speed.max() + obj) * rest <= model.thinnest:
