@@ -657,7 +657,8 @@ class FrictionlessGraspEnv(gym.Env):
         self._phi = phi
         drop = -weights["drop"] if dropped else 0.0
         ctrl = -weights["ctrl"] * float((a * a).sum())
-        reward_info = dict(zip(_REWARD_KEYS, map(float, (bonus, grip, lift, drop, ctrl))))
+        terms = map(float, (bonus, grip, lift, drop, ctrl))
+        reward_info = dict(zip(_REWARD_KEYS, terms, strict=True))
         return float(sum(reward_info.values())), reward_info
 
     # ------------------------------------------------------------------ observation / info
