@@ -19,11 +19,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from grasp_env.sim import CACHE
+
 OPTIMAL, INFEASIBLE, UNBOUNDED, ITERATION_LIMIT = 0, 1, 2, 3
 STATUS_NAMES = ("optimal", "infeasible", "unbounded", "iteration_limit")
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _pivot(T: np.ndarray, row: int, col: int) -> None:
     """Make column ``col`` basic in ``row``; a basic value below zero by rounding is zero."""
     T[row] /= T[row, col]
@@ -35,7 +37,7 @@ def _pivot(T: np.ndarray, row: int, col: int) -> None:
             T[i, -1] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _iterate(T: np.ndarray, basis: np.ndarray, allowed: int, tol: float, limit: int) -> int:
     """Bland's-rule pivots on tableau ``T`` (objective in the last row, right-hand side in
     the last column) over the first ``allowed`` columns, until optimal or unbounded."""
@@ -61,7 +63,7 @@ def _iterate(T: np.ndarray, basis: np.ndarray, allowed: int, tol: float, limit: 
     return ITERATION_LIMIT
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def solve(
     c: np.ndarray, A_eq: np.ndarray, b_eq: np.ndarray, A_ub: np.ndarray, b_ub: np.ndarray,
     tol: float,

@@ -1,18 +1,36 @@
-"""The quasi-static simulator's compiled kernels.
+"""The quasi-static simulator's compiled core (numba, plain arrays, no BLAS).
 
-Kernels (numba, plain arrays, no BLAS) live in modules named for what they compute:
-:mod:`~grasp_env.sim.dense` (small linear algebra), :mod:`~grasp_env.sim.placement` (world
-geometry and contact gaps), :mod:`~grasp_env.sim.detection` (which vertex-edge pairs touch),
-:mod:`~grasp_env.sim.clearance` (vertex-in-body gaps, overlap), :mod:`~grasp_env.sim.pose`
-(the object pose on a contact set), :mod:`~grasp_env.sim.consistency` (what a step checks),
-:mod:`~grasp_env.sim.least_norm` (least-motion twists) and
-:mod:`~grasp_env.sim.velocity_lp` (the velocity and force LPs).
+A whole hand move is one compiled call, :func:`grasp_env.sim.move.move_hand`, on the
+scene's arrays (:class:`grasp_env.sim.model.Model`). Its parts live in modules named for
+what they compute:
+
+* :mod:`~grasp_env.sim.move`: the increment loop (plan, solve, check, locate, update);
+* :mod:`~grasp_env.sim.motion`: the active set and least-motion twist (the LPs);
+* :mod:`~grasp_env.sim.step`: pose solves, checks and event location for one active set;
+* :mod:`~grasp_env.sim.fall`: constrained falls;
+* :mod:`~grasp_env.sim.equilibrium`: whether contacts hold the object, and the forces;
+* :mod:`~grasp_env.sim.hand`: the hand's motion (contact velocities, the support limit);
+* :mod:`~grasp_env.sim.contact_sets`, :mod:`~grasp_env.sim.events`: contact sets and event
+  codes;
+* the kernels: :mod:`~grasp_env.sim.dense` (small linear algebra),
+  :mod:`~grasp_env.sim.placement` (world geometry and contact gaps),
+  :mod:`~grasp_env.sim.detection` (which vertex-edge pairs touch),
+  :mod:`~grasp_env.sim.clearance` (vertex-in-body gaps, overlap),
+  :mod:`~grasp_env.sim.pose` (Newton on a contact set), :mod:`~grasp_env.sim.consistency`
+  (the violations a step checks), :mod:`~grasp_env.sim.least_norm` (least-norm twists) and
+  :mod:`~grasp_env.sim.velocity_lp` (the velocity and force LPs).
+
+The same source runs interpreted under ``NUMBA_DISABLE_JIT=1``, which is how to debug it.
+Compiled code is cached on disk (numba's ``cache=True``) where a cache folder can be
+written (:data:`CACHE`).
 """
 
 from __future__ import annotations
 
 import hashlib
 from pathlib import Path
+
+from numba.core import caching
 
 
 def drop_stale_cache(package: Path) -> bool:
@@ -43,5 +61,25 @@ def drop_stale_cache(package: Path) -> bool:
         return False
     return bool(stale)
 
+
+def cache_writable(source: Path) -> bool:
+    """Whether numba can cache functions of the file ``source`` on disk: in the
+    ``__pycache__`` beside it, in ``NUMBA_CACHE_DIR`` or in the user's cache folder (numba's
+    own locators, tried in its order)."""
+
+    def probe() -> None:
+        """A function of ``source``, as numba's locators see one."""
+
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # renamed in numba 0.5x
+    return any(
+        locator.from_function(probe, str(source)) is not None
+        for locator in impl._locator_classes
+    )
+
+
+#: Whether the compiled code is cached on disk. Where no cache folder can be written (a
+#: read-only install with no writable home or ``NUMBA_CACHE_DIR``), it is compiled in
+#: memory in each process instead.
+CACHE = cache_writable(Path(__file__))
 
 drop_stale_cache(Path(__file__).parent)

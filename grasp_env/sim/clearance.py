@@ -13,10 +13,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from grasp_env.sim import CACHE
 from grasp_env.sim.placement import EDGE, SUPPORT, TIP
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _edge_gap(world, n_vertices, v, a, nrm) -> float:
     """Gap of point row ``v`` to the line through point row ``a`` with normal row ``nrm``."""
     return (world[v, 0] - world[a, 0]) * world[n_vertices + nrm, 0] + (
@@ -24,7 +25,7 @@ def _edge_gap(world, n_vertices, v, a, nrm) -> float:
     ) * world[n_vertices + nrm, 1]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def near_bodies(world: np.ndarray, n_object: int, margin: float) -> np.ndarray:
     """Bodies whose bounding box comes within ``margin`` of the object's: the support when
     the object's lowest point is within ``margin`` of y = 0, hand bodies (1-3) by box."""
@@ -52,7 +53,7 @@ def near_bodies(world: np.ndarray, n_object: int, margin: float) -> np.ndarray:
     return out[:count]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _excluded(exclude: np.ndarray, body: int, kind: int, vertex: int) -> bool:
     for i in range(exclude.shape[0]):
         if exclude[i, 0] == body and exclude[i, 1] == kind and exclude[i, 2] == vertex:
@@ -60,7 +61,7 @@ def _excluded(exclude: np.ndarray, body: int, kind: int, vertex: int) -> bool:
     return False
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def min_gap(
     world: np.ndarray, n_object: int, n_vertices: int, bodies: np.ndarray, exclude: np.ndarray
 ) -> tuple[float, np.ndarray]:
@@ -103,7 +104,7 @@ def min_gap(
     return worst, key
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def separation(world: np.ndarray, n_object: int, n_vertices: int, b: int) -> float:
     """Separating-axis distance of the object from hand body ``b``: the largest gap between
     them along an edge normal of either polygon, a lower bound on their distance (minus the
@@ -123,7 +124,7 @@ def separation(world: np.ndarray, n_object: int, n_vertices: int, b: int) -> flo
     return best
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def max_overlap(
     world: np.ndarray, n_object: int, n_vertices: int, bodies: np.ndarray
 ) -> tuple[float, int]:

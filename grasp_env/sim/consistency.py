@@ -14,12 +14,12 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import clearance, dense
+from grasp_env.sim import CACHE, clearance, dense
 from grasp_env.sim.placement import EDGE, contact_rows
 from grasp_env.sim.pose import constraint_matrix, independent_forces
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def pinned_vertices(keys: np.ndarray) -> np.ndarray:
     """The ``(body, kind, vertex)`` each contact pins: the object vertex of an edge contact,
     the hand vertex of a tip contact, shape (m, 3)."""
@@ -30,7 +30,7 @@ def pinned_vertices(keys: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _edge_ends(T: np.ndarray, L: np.ndarray) -> np.ndarray:
     """How far each contact point lies beyond an end of its edge (<= 0 on the edge), in
     length units; -inf on the support (an edge without ends)."""
@@ -40,7 +40,7 @@ def _edge_ends(T: np.ndarray, L: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def violations(
     world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray, margin: float,
     com: np.ndarray, g: np.ndarray, length: float,
@@ -83,7 +83,7 @@ def violations(
     return gap, gap_key, depth, body, ends, lost, force, residual
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def geometry_violation(
     world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray
 ) -> float:

@@ -11,24 +11,25 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from grasp_env.sim import CACHE
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows
 
 NONE = np.full(4, -1, dtype=np.int64)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def empty() -> np.ndarray:
     """The empty set of contacts."""
     return np.zeros((0, 4), dtype=np.int64)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def same(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether the contact rows ``a`` and ``b`` are the same contact."""
     return a[0] == b[0] and a[1] == b[1] and a[2] == b[2] and a[3] == b[3]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def index(keys: np.ndarray, key: np.ndarray) -> int:
     """Position of ``key`` in ``keys``, or -1."""
     for i in range(keys.shape[0]):
@@ -37,7 +38,7 @@ def index(keys: np.ndarray, key: np.ndarray) -> int:
     return -1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def equal(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether the two sets hold the same contacts in the same order."""
     if a.shape[0] != b.shape[0]:
@@ -48,7 +49,7 @@ def equal(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def with_key(keys: np.ndarray, key: np.ndarray) -> np.ndarray:
     """``keys`` with ``key`` appended."""
     out = np.empty((keys.shape[0] + 1, 4), dtype=np.int64)
@@ -57,7 +58,7 @@ def with_key(keys: np.ndarray, key: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def without(keys: np.ndarray, key: np.ndarray) -> np.ndarray:
     """``keys`` without ``key``."""
     keep = np.ones(keys.shape[0], dtype=np.bool_)
@@ -66,7 +67,7 @@ def without(keys: np.ndarray, key: np.ndarray) -> np.ndarray:
     return keys[keep].copy()
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def all_on_support(keys: np.ndarray) -> bool:
     """Whether the set is non-empty and every contact is on the support."""
     if keys.shape[0] == 0:
@@ -77,7 +78,7 @@ def all_on_support(keys: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def choices(model, world: np.ndarray, keys: np.ndarray) -> list:
     """Contact sets to try: one candidate per vertex-vertex touch.
 
@@ -126,7 +127,7 @@ def choices(model, world: np.ndarray, keys: np.ndarray) -> list:
         pick[d] += 1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def supporting_pairs(model, world: np.ndarray, keys: np.ndarray) -> np.ndarray:
     """``keys`` with the contacts of each straight edge that holds three or more object
     vertices reduced to its outermost two (the pair farthest apart, first found); ``keys``

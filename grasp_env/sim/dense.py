@@ -19,13 +19,15 @@ import math
 import numpy as np
 from numba import njit
 
+from grasp_env.sim import CACHE
+
 EPS = float(np.finfo(float).eps)
 
 #: One-sided Jacobi sweeps before giving up (each sweep squares the off-diagonal size).
 _SWEEPS = 60
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def dot(a: np.ndarray, b: np.ndarray) -> float:
     """``a . b`` for 1-D arrays, summed in index order."""
     out = 0.0
@@ -34,7 +36,7 @@ def dot(a: np.ndarray, b: np.ndarray) -> float:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``A x`` for a 2-D ``A``."""
     m, n = A.shape
@@ -47,7 +49,7 @@ def matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def rmatvec(A: np.ndarray, y: np.ndarray) -> np.ndarray:
     """``A^T y`` for a 2-D ``A``."""
     m, n = A.shape
@@ -60,7 +62,7 @@ def rmatvec(A: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """``A B`` for 2-D arrays."""
     m, k = A.shape
@@ -75,7 +77,7 @@ def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _lu(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """LU factors of a square ``A`` with partial pivoting: ``(LU, perm, sign)``; an exactly
     zero pivot leaves its column unreduced (the determinant is then 0)."""
@@ -104,7 +106,7 @@ def _lu(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return LU, perm, sign
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def det(A: np.ndarray) -> float:
     """Determinant of a square ``A`` (LU with partial pivoting)."""
     LU, _, sign = _lu(A)
@@ -114,7 +116,7 @@ def det(A: np.ndarray) -> float:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
     """``x`` with ``A x = b`` for a square ``A`` (LU with partial pivoting), and whether it
     exists: False on an exactly zero pivot or a non-finite result (as LAPACK's
@@ -139,7 +141,7 @@ def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
     return x, True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Thin singular value decomposition ``A = U diag(s) V^T`` by one-sided Jacobi.
 
@@ -209,7 +211,7 @@ def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return U_out, s_out, V_out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def lstsq(A: np.ndarray, b: np.ndarray, rcond: float) -> tuple[np.ndarray, int]:
     """Least-norm least-squares solution of ``A x ~ b`` and the rank used.
 
@@ -236,7 +238,7 @@ def lstsq(A: np.ndarray, b: np.ndarray, rcond: float) -> tuple[np.ndarray, int]:
     return x, rank
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def rank(A: np.ndarray, tol: float) -> int:
     """Number of singular values of ``A`` above ``tol`` (an absolute threshold)."""
     s = svd(A)[1]
@@ -247,7 +249,7 @@ def rank(A: np.ndarray, tol: float) -> int:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def nnls(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     """``argmin |A x - b|`` over ``x >= 0`` (Lawson and Hanson's active-set method) and the
     residual norm.

@@ -43,6 +43,7 @@ import math
 import numpy as np
 from numba import njit
 
+from grasp_env.sim import CACHE
 from grasp_env.sim.clearance import near_bodies
 from grasp_env.sim.placement import EDGE, SUPPORT, TIP
 
@@ -52,7 +53,7 @@ SAME_NORMAL = 1.0 - 1e-9
 FLUSH_ANGLE = 1e-7
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _locally_valid(
     world: np.ndarray, first: int, count: int, v: int, nx: float, ny: float, tol: float
 ) -> bool:
@@ -67,7 +68,7 @@ def _locally_valid(
     return True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _excluded(exclude: np.ndarray, body: int, kind: int, k: int, j: int) -> bool:
     """Whether the key ``(body, kind, k, j)`` is a row of ``exclude``."""
     for i in range(exclude.shape[0]):
@@ -81,7 +82,7 @@ def _excluded(exclude: np.ndarray, body: int, kind: int, k: int, j: int) -> bool
     return False
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _on_edge(
     world: np.ndarray, v: int, a: int, b: int, nrm: int, slack: float
 ) -> tuple[bool, float]:
@@ -97,7 +98,7 @@ def _on_edge(
     return over == 0.0 or over * over + gap * gap <= slack * slack, gap
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _keep(
     out: np.ndarray, seen: np.ndarray, count: int, key: tuple, p: tuple, n: tuple, tol: float
 ) -> int:
@@ -116,7 +117,7 @@ def _keep(
     return count + 1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def detect(
     world: np.ndarray, n_object: int, n_vertices: int, tol: float, exclude: np.ndarray
 ) -> np.ndarray:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import contact_sets, dense
+from grasp_env.sim import CACHE, contact_sets, dense
 from grasp_env.sim.motion import motion_lp
 from grasp_env.sim.placement import contact_rows
 from grasp_env.sim.pose import constraint_matrix, independent_forces
@@ -19,14 +19,14 @@ from grasp_env.sim.velocity_lp import OPTIMAL
 MAX_FORCE = 1e6
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def wrench_rows(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> np.ndarray:
     """``V_ob`` (m, 3) of the contacts ``keys`` with moments per palm width."""
     P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
     return constraint_matrix(P, N, com) * model.per_length
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def held(
     model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, max_force: float
 ) -> bool:
@@ -45,7 +45,7 @@ def held(
     return True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def rest_forces(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> np.ndarray:
     """Contact forces holding the object once the hand stops: the least total force in
     equilibrium (a position-controlled hand adds no preload, section 3.2)."""
@@ -69,7 +69,7 @@ def rest_forces(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> 
     return np.maximum(lam, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def determined(model, world: np.ndarray, q: np.ndarray, E: np.ndarray) -> bool:
     """True when ``E`` cannot change before an event: three independent contacts holding the
     object with forces all clearly positive, or the object resting on the support."""

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from grasp_env.errors import SimulationError, WorkLimitError
-from grasp_env.sim import contact_sets, dense, detection, least_norm
+from grasp_env.sim import CACHE, contact_sets, dense, detection, least_norm
 from grasp_env.sim.equilibrium import MAX_FORCE, held
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
@@ -27,13 +27,13 @@ from grasp_env.sim.step import geometry_violation, newton, newton_held
 HALVINGS = 50
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def touching(model, world: np.ndarray, exclude: np.ndarray) -> np.ndarray:
     """The contacts at a placement (:func:`grasp_env.sim.detection.detect`)."""
     return detection.detect(world, model.n_object, model.n_vertices, model.tol, exclude)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def held_here(model, q: np.ndarray, h: np.ndarray, ftol: float) -> bool:
     """Whether the contacts touching at ``(q, h)`` hold the object, to ``ftol``."""
     world = place(model, q, h)
@@ -41,7 +41,7 @@ def held_here(model, q: np.ndarray, h: np.ndarray, ftol: float) -> bool:
     return held(model, world, q[:2], keys, ftol, MAX_FORCE)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def descent(model, world: np.ndarray, q: np.ndarray, keys: np.ndarray):
     """Steepest admissible descent (scaled twist) for contacts ``keys``, and the contacts it
     keeps closed: ``a = argmin |a - g|^2 s.t. C a >= 0`` (gravity projected on the cone)."""
@@ -56,7 +56,7 @@ def descent(model, world: np.ndarray, q: np.ndarray, keys: np.ndarray):
     return a, keys[tight].copy()
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def fall_step(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray, solves):
     """One fall step of at most ``d``, shortened to the first new contact or edge end:
     ``(q_new, at_event, moved)``; ``at_event`` when the step was shortened to an event,
@@ -83,7 +83,7 @@ def fall_step(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray,
     return q_lo, True, moved
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def cradle(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray, solves):
     """The rest pose of a fall that has nearly come to rest on one or two contacts: their
     equilibrium pose by Newton, if it lies within one fall step, no higher, with nothing
@@ -102,14 +102,14 @@ def cradle(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray, solves):
     return q_rest, True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def at_edge_end(model, world: np.ndarray, key: np.ndarray) -> bool:
     """Whether contact ``key``'s point lies within two tolerances of an end of its edge."""
     _, _, _, T, L = contact_rows(world, model.n_object, model.n_vertices, key.reshape(1, 4))
     return min(T[0], 1.0 - T[0]) * L[0] <= 2.0 * model.tol
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def fall_options(model, world: np.ndarray, keys: np.ndarray) -> list:
     """Contact sets a fall step may keep: at a vertex-vertex touch any one candidate's
     half-plane suffices locally, or all candidates at once (always admissible). An edge
@@ -132,7 +132,7 @@ def fall_options(model, world: np.ndarray, keys: np.ndarray) -> list:
     return options
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
     """Quasi-static fall from ``q`` at hand ``h`` (path parameter ``s``): ``(q, moved)``,
     the rest pose and whether the object moved at all. Logs the fall's start and end."""
@@ -183,7 +183,7 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
     raise WorkLimitError("fall did not come to rest")
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def fall_if_unheld(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
     """Fall to rest when the touching contacts cannot hold the object: ``(q, fell)``; a fall
     that found no way down leaves no events."""
@@ -196,7 +196,7 @@ def fall_if_unheld(model, q: np.ndarray, h: np.ndarray, s: float, events: list, 
     return q_fallen, moved
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def nudge(model, q, s, E, v, h0, dh, s_end, solves):
     """Smallest step along ``E`` (geometrically consistent) after which the touching contacts
     can no longer hold the object: ``(s, q, found)``, not found within one step."""
@@ -212,7 +212,7 @@ def nudge(model, q, s, E, v, h0, dh, s_end, solves):
     return s, q, False
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
     """Nudge the hand past the boundary of equilibrium (:func:`nudge`) and let the object
     fall to rest there: ``(s, q, found)``."""

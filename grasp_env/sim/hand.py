@@ -13,13 +13,14 @@ import math
 import numpy as np
 from numba import njit
 
+from grasp_env.sim import CACHE
 from grasp_env.sim.placement import SUPPORT
 
 #: Points of the scan that brackets the first support crossing of a move.
 SCAN = 65
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def contact_xi(
     model, h: np.ndarray, dh: np.ndarray, keys: np.ndarray, P: np.ndarray, N: np.ndarray
 ) -> np.ndarray:
@@ -45,7 +46,7 @@ def contact_xi(
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def lowest_point(model, h: np.ndarray) -> float:
     """Lowest height of any hand vertex at hand configuration ``h`` (the hand rows of
     :func:`grasp_env.sim.placement.world_points`, heights only)."""
@@ -65,7 +66,7 @@ def lowest_point(model, h: np.ndarray) -> float:
     return low
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def vertex_speeds(model, dh: np.ndarray) -> np.ndarray:
     """A bound on how far any vertex of each hand body (palm, finger 1, finger 2) moves
     over the move ``dh``: its frame origin's travel (the joints ride the palm's turn) plus
@@ -80,7 +81,7 @@ def vertex_speeds(model, dh: np.ndarray) -> np.ndarray:
     ])  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def max_drop(model, dh: np.ndarray) -> float:
     """A bound on how far any hand vertex can descend over the move ``dh``: the palm's
     origin moves by ``|dh_y|``, the joints by at most ``half |dh_theta|`` more, and each body
@@ -92,7 +93,7 @@ def max_drop(model, dh: np.ndarray) -> float:
     return max(drop, joints + abs(dh[2] + dh[4]) * model.reach[2])
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def support_limit(model, h0: np.ndarray, h1: np.ndarray) -> tuple[float, bool]:
     """Largest ``s`` in [0, 1] before a hand vertex enters the support, and whether the move
     is cut short.

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import dense
+from grasp_env.sim import CACHE, dense
 
 #: Relative cut-off of singular values in the active sets' least-squares solves.
 RCOND = 1e-13
@@ -29,7 +29,7 @@ RCOND = 1e-13
 TIE = 1e-15
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _scale(b: np.ndarray, d: np.ndarray) -> float:
     """``max(1, max |b|, max |d|)``, the scale of the tolerances."""
     out = 1.0
@@ -44,7 +44,7 @@ def _scale(b: np.ndarray, d: np.ndarray) -> float:
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _try(
     A: np.ndarray, b: np.ndarray, C: np.ndarray, d: np.ndarray, S: np.ndarray, thr: float
 ) -> tuple[np.ndarray, bool]:
@@ -76,7 +76,7 @@ def _try(
     return w, True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def least_norm(
     A: np.ndarray, b: np.ndarray, C: np.ndarray, d: np.ndarray, tol: float
 ) -> tuple[np.ndarray, bool]:

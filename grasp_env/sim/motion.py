@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, objmode
 
-from grasp_env.sim import contact_sets, dense, least_norm, velocity_lp
+from grasp_env.sim import CACHE, contact_sets, dense, least_norm, velocity_lp
 from grasp_env.sim.hand import contact_xi
 from grasp_env.sim.placement import contact_rows
 from grasp_env.sim.pose import constraint_matrix
@@ -35,7 +35,7 @@ def reference_motion_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> tuple:
     return status, np.zeros(3), np.zeros(len(xi)), res.value
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def motion_lp(model, V: np.ndarray, xi: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, float]:
     """``min W v_y s.t. V v >= xi`` and its dual: ``(status, v, lam, value)``. The exact basis
     enumeration, or HiGHS on the reference path and wherever the enumeration cannot decide
@@ -50,7 +50,7 @@ def motion_lp(model, V: np.ndarray, xi: np.ndarray) -> tuple[int, np.ndarray, np
     return status, v, lam, value
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def solve_lp(
     model, world: np.ndarray, q: np.ndarray, h: np.ndarray, dh: np.ndarray, keys: np.ndarray
 ) -> tuple[int, float, np.ndarray, np.ndarray]:
@@ -88,7 +88,7 @@ def solve_lp(
     return MOVE, value * L, keys[tight].copy(), v
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def plan(
     model, world: np.ndarray, q: np.ndarray, h: np.ndarray, dh: np.ndarray, keys: np.ndarray,
     allow_fall: bool,

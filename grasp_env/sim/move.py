@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from grasp_env.errors import SimulationError, WorkLimitError
-from grasp_env.sim import contact_sets, motion
+from grasp_env.sim import CACHE, contact_sets, motion
 from grasp_env.sim.clearance import separation
 from grasp_env.sim.equilibrium import determined, held, rest_forces
 from grasp_env.sim.events import (
@@ -53,7 +53,7 @@ CHATTER_DS = 1e-4
 STALL = 200
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def new_log() -> list:
     """An empty event log (:mod:`grasp_env.sim.events`)."""
     log = [(NO_CHECK, 0.0, contact_sets.empty())]
@@ -61,7 +61,7 @@ def new_log() -> list:
     return log
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def settle(model, q: np.ndarray, h: np.ndarray, solves: np.ndarray):
     """The object at ``(q, h)`` after any fall to rest: ``(q, events)``."""
     events = new_log()
@@ -70,7 +70,7 @@ def settle(model, q: np.ndarray, h: np.ndarray, solves: np.ndarray):
     return q, events
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
     """The hand stops at a jam; the object must be held there (at a fold by forces without
     bound). A jam whose object is neither held nor able to fall is a failure, not a state."""
@@ -80,7 +80,7 @@ def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
         raise SimulationError("jam at s =", s, "with the object neither held nor falling")
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known: np.ndarray):
     """Whether a move ``dh`` from ``h0`` leaves alone an object resting on the support
     alone: every hand body stays farther from it than the checks look (``0.05 size + 10
@@ -97,7 +97,7 @@ def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known
     return True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def move_hand(
     model, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray, use_known: bool,
     solves: np.ndarray,
@@ -123,7 +123,7 @@ def move_hand(
     return q, h, s, s_end, blocked, jammed, events, False, at_rest(model, q, h)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def move(
     model, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, s_end: float, known: np.ndarray,
     use_known: bool, solves: np.ndarray,
@@ -137,7 +137,7 @@ def move(
     return _advance(model, q, h0, dh, s_end, known, use_known, new_log(), solves)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _advance(model, q, h0, dh, s_end, known, use_known, events, solves):
     """The increment loop of :func:`move` (see the module docstring)."""
     none = contact_sets.empty()
@@ -305,7 +305,7 @@ def _advance(model, q, h0, dh, s_end, known, use_known, events, solves):
     raise WorkLimitError("no progress after", model.max_iterations, "increments, at s =", s)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def at_rest(model, q: np.ndarray, h: np.ndarray):
     """The contacts of a state at rest: ``(keys, points, normals, gaps, forces)`` with the
     least total force in equilibrium (:func:`grasp_env.sim.equilibrium.rest_forces`)."""

@@ -17,11 +17,13 @@ import math
 import numpy as np
 from numba import njit
 
+from grasp_env.sim import CACHE
+
 SUPPORT = 0
 EDGE, TIP = 0, 1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def world_points(
     points: np.ndarray, body: np.ndarray, n_vertices: int, half: float, q: np.ndarray,
     h: np.ndarray,
@@ -61,7 +63,7 @@ def world_points(
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def contact_rows(
     world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -110,7 +112,7 @@ def contact_rows(
     return P, N, F, T, L
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def place(model, q: np.ndarray, h: np.ndarray) -> np.ndarray:
     """:func:`world_points` of a :class:`~grasp_env.sim.model.Model`'s bodies at ``(q, h)``."""
     return world_points(model.points, model.body, model.n_vertices, model.half, q, h)

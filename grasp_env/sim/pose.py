@@ -13,14 +13,14 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import dense
+from grasp_env.sim import CACHE, dense
 from grasp_env.sim.placement import TIP, contact_rows, world_points
 
 #: Newton iterations before a solve counts as failed.
 ITERATIONS = 30
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def constraint_matrix(P: np.ndarray, N: np.ndarray, com: np.ndarray) -> np.ndarray:
     """``V_ob`` (m, 3) (eq. 9): row i maps an object twist to the normal velocity of the
     object's material point at contact i, ``[n_i, r_i x n_i]`` with ``r_i = p_i - com``."""
@@ -34,7 +34,7 @@ def constraint_matrix(P: np.ndarray, N: np.ndarray, com: np.ndarray) -> np.ndarr
     return V
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def independent_forces(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
     """Least-squares forces ``lam`` with ``W lam ~ g`` for up to three contact wrenches (the
     columns of ``W``), and False when the wrenches are dependent. Three wrenches: a direct
@@ -62,7 +62,7 @@ def independent_forces(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
     return dense.lstsq(W, g, -1.0)[0], True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def newton(
     points: np.ndarray, body: np.ndarray, n_object: int, n_vertices: int, half: float,
     q0: np.ndarray, h: np.ndarray, keys: np.ndarray, scale: np.ndarray, newton_tol: float,
@@ -109,7 +109,7 @@ def newton(
     return q, False
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def newton_held(
     points: np.ndarray, body: np.ndarray, n_object: int, n_vertices: int, half: float,
     q0: np.ndarray, h: np.ndarray, keys: np.ndarray, scale: np.ndarray, rho: float,

@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from grasp_env.errors import WorkLimitError
-from grasp_env.sim import clearance, consistency, contact_sets, pose
+from grasp_env.sim import CACHE, clearance, consistency, contact_sets, pose
 from grasp_env.sim.contact_sets import NONE
 from grasp_env.sim.events import (
     EDGE_TO_TIP,
@@ -38,7 +38,7 @@ from grasp_env.sim.placement import EDGE, contact_rows, place
 # The pose on a contact set
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def count_solve(model, solves: np.ndarray) -> None:
     """Charge one pose solve to the call's budget ``solves[0]`` (``model.max_solves``)."""
     solves[0] += 1
@@ -46,13 +46,13 @@ def count_solve(model, solves: np.ndarray) -> None:
         raise WorkLimitError("the move needs more than", model.max_solves, "pose solves")
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def gaps(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray) -> np.ndarray:
     """Gaps of the contacts ``keys`` at ``(q, h)``."""
     return contact_rows(place(model, q, h), model.n_object, model.n_vertices, keys)[2]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def newton(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.ndarray):
     """Solve ``phi_E(q, h) = 0`` from ``q0`` (least-motion Newton steps): ``(q, ok)``.
 
@@ -75,7 +75,7 @@ def newton(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.ndarr
     return q, np.abs(gaps(model, q, h, E)).max() <= model.tol
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def newton_held(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.ndarray):
     """Pose held by fewer than three contacts: their gap equations together with the
     object's equilibrium (:func:`grasp_env.sim.pose.newton_held`): ``(q, ok)``. With
@@ -88,7 +88,7 @@ def newton_held(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def solve_pose(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.ndarray):
     """The object pose on the path with active set ``E``, held by ``E`` in equilibrium:
     ``(q, ok)``."""
@@ -108,13 +108,13 @@ def solve_pose(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.n
 # Checks
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def geometry_violation(model, q: np.ndarray, h: np.ndarray, E: np.ndarray) -> float:
     """Penetration, overlap or a contact past its edge's end, at worst, for ``E``."""
     return consistency.geometry_violation(place(model, q, h), model.n_object, model.n_vertices, E)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def checks(model, q: np.ndarray, h: np.ndarray, E: np.ndarray):
     """The checks of the active set ``E`` at ``(q, h)`` (module docstring):
     ``(kinds, values, keys)``."""
@@ -149,7 +149,7 @@ def checks(model, q: np.ndarray, h: np.ndarray, E: np.ndarray):
     return kinds[:n], values[:n], keys[:n]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def worst(kinds: np.ndarray, values: np.ndarray, keys: np.ndarray):
     """The largest check (the first of equal ones): ``(value, kind, key)``."""
     if kinds.shape[0] == 0:
@@ -158,7 +158,7 @@ def worst(kinds: np.ndarray, values: np.ndarray, keys: np.ndarray):
     return values[i], kinds[i], keys[i]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def value_of(kinds, values, keys, kind: int, key: np.ndarray) -> float:
     """The value of the check ``(kind, key)``, or -inf when it is not among them."""
     for i in range(kinds.shape[0]):
@@ -171,7 +171,7 @@ def value_of(kinds, values, keys, kind: int, key: np.ndarray) -> float:
 # Steps and events
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def try_step(
     model, q: np.ndarray, s: float, ds: float, E: np.ndarray, v: np.ndarray, h0: np.ndarray,
     dh: np.ndarray, guard: bool, solves: np.ndarray,
@@ -194,7 +194,7 @@ def try_step(
     return value <= model.tol, q_new, kind, key
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def event_of(kind: int, key: np.ndarray):
     """The event a trigger reports: ``(kind, keys)``. An overlap is a new contact (edges
     about to cross) and a failed equilibrium a lost contact, neither with a known key."""
@@ -207,7 +207,7 @@ def event_of(kind: int, key: np.ndarray):
     return kind, key.reshape(1, 4).copy()
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def locate(
     model, q: np.ndarray, s_lo: float, s_hi: float, E: np.ndarray, v: np.ndarray,
     h0: np.ndarray, dh: np.ndarray, kind: int, key: np.ndarray, solves: np.ndarray,
@@ -247,7 +247,7 @@ def locate(
     return s_lo, q_lo, event, event_keys
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def sweep_limit(
     model, q: np.ndarray, h: np.ndarray, dh: np.ndarray, v: np.ndarray, E: np.ndarray,
     rest: float,

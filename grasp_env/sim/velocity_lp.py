@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import dense
+from grasp_env.sim import CACHE, dense
 
 RANK_TOL = 1e-10
 """Unit-row determinant (volume) an r-subset must exceed for ``rank V >= r``."""
@@ -43,7 +43,7 @@ OPTIMAL, INFEASIBLE, UNBOUNDED, UNDECIDED = 0, 1, 2, 3
 # Row subsets, adjugates and null vectors
 
 
-@njit(cache=True, inline="always")
+@njit(cache=CACHE, inline="always")
 def _next_subset(idx: np.ndarray, n: int) -> bool:
     """Advance the increasing k-subset ``idx`` of range(n) to the next one in lexicographic
     order, in place; False (idx unchanged) after the last."""
@@ -59,7 +59,7 @@ def _next_subset(idx: np.ndarray, n: int) -> bool:
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=CACHE, inline="always")
 def _cross(W: np.ndarray, p: int, q: int, out: np.ndarray) -> None:
     """``out = W_p x W_q`` for rows of W (n, 3)."""
     out[0] = W[p, 1] * W[q, 2] - W[p, 2] * W[q, 1]
@@ -67,7 +67,7 @@ def _cross(W: np.ndarray, p: int, q: int, out: np.ndarray) -> None:
     out[2] = W[p, 0] * W[q, 1] - W[p, 1] * W[q, 0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=CACHE, inline="always")
 def _adjugate(W: np.ndarray, rows: np.ndarray, G: np.ndarray) -> float:
     """Fill ``G`` (r, r) with ``det(W_B) W_B^{-T}`` for the rows ``B = rows`` of W (n, r),
     r in {1, 2, 3}, and return ``det(W_B)``.
@@ -92,7 +92,7 @@ def _adjugate(W: np.ndarray, rows: np.ndarray, G: np.ndarray) -> float:
     return W[a, 0]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _has_volume(W: np.ndarray) -> bool:
     """Whether some r rows of W (n, r) span a volume ``|det W_B| > RANK_TOL``."""
     n, r = W.shape
@@ -107,7 +107,7 @@ def _has_volume(W: np.ndarray) -> bool:
             return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=CACHE, inline="always")
 def _null_vector(W: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
     """Null vector of the ``r - 1`` rows ``W_R`` (``R = rows``) of W (n, r), by signed minors:
     ``a x b`` for r = 3, ``(a_1, -a_0)`` for r = 2, ``1`` for r = 1."""
@@ -120,12 +120,12 @@ def _null_vector(W: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
         out[0] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _norm(x: np.ndarray) -> float:
     return math.sqrt(dense.dot(x, x))
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _abs_max(x: np.ndarray) -> float:
     """``max |x_i|``, 0 for an empty x."""
     out = 0.0
@@ -138,7 +138,7 @@ def _abs_max(x: np.ndarray) -> float:
 # The three outcomes, for W (n, r) of rank r with (near-)unit rows and xi scaled with them
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _basis_solution(
     W: np.ndarray, xi: np.ndarray, c_r: np.ndarray, rows: np.ndarray, G: np.ndarray,
     u_s: np.ndarray, lam_s: np.ndarray,
@@ -165,7 +165,7 @@ def _basis_solution(
     return abs(det)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _optimal_basis(
     W: np.ndarray, xi: np.ndarray, c_r: np.ndarray
 ) -> tuple[bool, np.ndarray, np.ndarray]:
@@ -279,7 +279,7 @@ def _optimal_basis(
     return True, u, lam
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _farkas(W: np.ndarray, xi: np.ndarray) -> tuple[bool, np.ndarray]:
     """A vector ``y >= 0``, ``1^T y = 1``, ``W^T y = 0`` with ``xi^T y > 0``: ``(found, y)``.
 
@@ -350,7 +350,7 @@ def _farkas(W: np.ndarray, xi: np.ndarray) -> tuple[bool, np.ndarray]:
     return True, out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _descent_ray(W: np.ndarray, c_r: np.ndarray) -> tuple[bool, np.ndarray]:
     """A unit extreme ray ``d`` of ``{W d >= 0}`` (rank r, unit rows) with ``c_r^T d < 0``:
     the null vector of r - 1 rows with the most negative ``c_r^T d``, as ``(found, d)``."""
@@ -395,7 +395,7 @@ def _descent_ray(W: np.ndarray, c_r: np.ndarray) -> tuple[bool, np.ndarray]:
     return found, best_d
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _outcome(
     W: np.ndarray, xi: np.ndarray, c: np.ndarray, Q: np.ndarray, reduced: bool
 ) -> tuple[int, np.ndarray, np.ndarray, float, np.ndarray]:
@@ -439,7 +439,7 @@ def _outcome(
     return UNBOUNDED, none, none, -np.inf, dense.matvec(Q, d) if reduced else d
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _row_space(V: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     """``(W, Q, reduced)`` for unit rows V (n, 3): ``W = V Q`` with ``Q`` (3, r) an orthonormal
     basis of V's row space, ``r = rank V``; for r = 3, ``W = V`` and ``reduced`` is False."""
@@ -464,7 +464,7 @@ def _row_space(V: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
 # Entry points
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def solve(
     V: np.ndarray, xi: np.ndarray, c: np.ndarray
 ) -> tuple[int, np.ndarray, np.ndarray, float, np.ndarray]:
@@ -523,7 +523,7 @@ def solve(
     return status, v, lam_u, value, cert
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def form_closure(V: np.ndarray) -> bool:
     """Form closure: ``V v >= 0`` only for ``v = 0``, for V (n, 3).
 
