@@ -986,7 +986,9 @@ def first_contact_s(dq: float) -> tuple[float, float]:
 @pytest.mark.parametrize("dq", CLOSING.values(), ids=CLOSING.keys())
 def test_first_contact_located_to_tolerance(dq: float) -> None:
     """The first event (finger 2 meets vertex 2) sits within contact_tol of the exact
-    touching configuration, and the error falls at least 10x per 100x smaller tolerance."""
+    touching configuration, and the error falls at least 10x per 100x smaller tolerance
+    until it reaches rounding (events are located by regula falsi on the gap, which may land
+    on the touching point itself)."""
     s_exact, speed = first_contact_s(dq)
     errors = []
     for tol in (1e-5, 1e-7, 1e-9):
@@ -994,7 +996,8 @@ def test_first_contact_located_to_tolerance(dq: float) -> None:
         assert e.kind == "new_contact" and e.contacts[0][0] == 3  # finger 2
         errors.append(abs(e.s - s_exact) * speed)  # as a gap, in palm widths
         assert errors[-1] <= tol, f"tol {tol}: first contact off by {errors[-1]:.2e}"
-    assert errors[1] <= errors[0] / 10 and errors[2] <= errors[1] / 10, errors
+    assert errors[1] <= max(errors[0] / 10, ROUNDING), errors
+    assert errors[2] <= max(errors[1] / 10, ROUNDING), errors
 
 
 @pytest.mark.parametrize("dq", CLOSING.values(), ids=CLOSING.keys())

@@ -43,8 +43,8 @@ RANDOM_PALM_XY, RANDOM_PALM_THETA, RANDOM_FINGER = 0.02, 0.05, 0.1
 RANDOM_START_TRIES = 50
 
 BODIES = geo.BODY_NAMES
-#: Signs that turn the two finger actions into closing motions.
-_CLOSING = np.array([1.0, -1.0])
+#: Each body's first entry in the observation's contact block (count, then force).
+_BODY_INDEX = {name: 2 * i for i, name in enumerate(BODIES)}
 _STARTS = ("scene", "preliftoff", "random")
 _OPTION_KEYS = ("scene", "palm", "fingers")
 _REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
@@ -445,12 +445,12 @@ class FrictionlessGraspEnv(gym.Env):
         finite real numbers of the action space's shape."""
         size = self.action_space.shape[0]
         if type(action) is np.ndarray and action.dtype.kind == "f" and action.shape == (size,):
-            a = action.astype(float)  # the common case, checked as _vector would
-            if not np.abs(a).max() < math.inf:  # NaN compares False
+            values = action.tolist()  # the common case, checked as _vector would
+            if not all(map(math.isfinite, values)):
                 raise ValueError(f"action must be finite, got {_short(action)}")
         else:
-            a = _vector(action, "action", size)
-        return np.minimum(np.maximum(a, -1.0), 1.0)
+            values = _vector(action, "action", size).tolist()
+        return np.array([min(max(x, -1.0), 1.0) for x in values])
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -470,6 +470,7 @@ class FrictionlessGraspEnv(gym.Env):
         self.np_random.bit_generator.state = rng.bit_generator.state  # the draws made above
         self._sim, self._state, self._steps = sim, state, 0
         self._object_obs(state.scene)
+        self._palm_box = self._palm_limits(state.scene)
         self._analysis = analysis
         self._y0 = float(state.object_pose[1])
         self._left_support = not self._analysis["on_support"]
@@ -607,20 +608,25 @@ class FrictionlessGraspEnv(gym.Env):
 
     def _simulate(self, state: State, a: np.ndarray) -> State:
         """:meth:`simulate_action` of a checked action (floats in [-1, 1])."""
-        h = state.hand
-        fingers = h[3:] + self.max_finger_step * a[:2] * _CLOSING
+        h, a = state.hand.tolist(), a.tolist()
+        step = self.max_finger_step
+        fingers = np.array([h[3] + step * a[0], h[4] - step * a[1]])  # both close for a > 0
         palm = None
         if self.palm_control:
-            scene = self._sim.scene
-            w = scene.palm.width
-            x0 = scene.object.start_pose[0]
-            step = self.max_palm_step * np.array([w, w, 1.0])
-            palm = np.clip(
-                h[:3] + step * a[2:],
-                [x0 - PALM_X_RANGE * w, 0.0, -PALM_THETA_MAX],
-                [x0 + PALM_X_RANGE * w, PALM_Y_MAX * w, PALM_THETA_MAX],
+            low, high, step = self._palm_box
+            palm = np.array(
+                [min(max(h[i] + step[i] * a[2 + i], low[i]), high[i]) for i in range(3)]
             )
         return self._sim.move_hand(state, palm=palm, fingers=fingers)
+
+    def _palm_limits(self, scene: Scene) -> tuple[list, list, list]:
+        """The palm's workspace (lower and upper bounds of ``(x, y, theta)``) and its largest
+        step per action unit, for ``scene``."""
+        w, x0 = scene.palm.width, scene.object.start_pose[0]
+        low = [x0 - PALM_X_RANGE * w, 0.0, -PALM_THETA_MAX]
+        high = [x0 + PALM_X_RANGE * w, PALM_Y_MAX * w, PALM_THETA_MAX]
+        step = [float(m) * u for m, u in zip(self.max_palm_step, (w, w, 1.0), strict=True)]
+        return low, high, step
 
     def _analyse(self, state: State) -> dict[str, Any]:
         """Form closure (always), y* (only when needed) and where the object is."""
@@ -677,18 +683,21 @@ class FrictionlessGraspEnv(gym.Env):
             (x_o - x0) / w, y_o / w, math.sin(th_o), math.cos(th_o),
             p_P[0] / w, p_P[1] / w, math.sin(p_P[2]), math.cos(p_P[2]),
         )  # fmt: skip
-        contacts = obs[self._contacts_at :]
-        contacts[:] = 0.0
+        contacts = [0.0] * (2 * len(BODIES))
         for c in state.contacts:
-            k = 2 * BODIES.index(c.body)
+            k = _BODY_INDEX[c.body]
             contacts[k] += 1.0
             contacts[k + 1] += c.force / weight
-        contacts[-3:] = (
+        contacts += (
             float(an["form_closure"]),
             grip if math.isfinite(grip) else GRIP_MAX,
             (y_o - self._y0) / w,
         )
-        return np.minimum(np.maximum(obs, self._obs_low), self._obs_high).astype(np.float32)
+        obs[self._contacts_at :] = contacts
+        np.maximum(obs, self._obs_low, out=self._obs_clipped)
+        return np.minimum(self._obs_clipped, self._obs_high, out=self._obs_clipped).astype(
+            np.float32
+        )
 
     def _object_obs(self, scene: Scene) -> None:
         """The observation's per-episode part: the object's vertices (body frame, in palm
@@ -696,6 +705,7 @@ class FrictionlessGraspEnv(gym.Env):
         n = self.max_vertices
         v = scene.object.vertices_B / scene.palm.width
         obs = self._obs_buffer = np.zeros(len(self._obs_low))
+        self._obs_clipped = np.empty_like(obs)
         obs[13 : 13 + 2 * len(v)] = v.ravel()
         obs[13 + 2 * n : 13 + 2 * n + len(v)] = 1.0
         self._contacts_at = 13 + 3 * n

@@ -213,12 +213,12 @@ def _advance(model, q, h0, dh, s_end, known, use_known, events, solves):
             # E fixes the pose as a function of s and holds it with positive forces: it stays
             # the active set until an event and the pose needs no integration, so one step may
             # go to the end of the move (the check locates any event in it).
-            ok, q_new, kind, key = try_step(model, q, s, rest, E, v, h0, dh, True, solves)
+            ok, q_new, kind, key, value = try_step(model, q, s, rest, E, v, h0, dh, True, solves)
             tried = ok or kind != JAM
             if tried:
                 ds = rest
         if not tried:
-            ok, q_new, kind, key = try_step(model, q, s, ds, E, v, h0, dh, False, solves)
+            ok, q_new, kind, key, value = try_step(model, q, s, ds, E, v, h0, dh, False, solves)
         if ok:
             # 5. update: the step is accepted
             h_new = h0 + (s + ds) * dh
@@ -229,7 +229,7 @@ def _advance(model, q, h0, dh, s_end, known, use_known, events, solves):
             continue
         # 4. locate the first event
         s_star, q_star, event, event_keys = locate(
-            model, q, s, s + ds, E, v, h0, dh, kind, key, solves
+            model, q, s, s + ds, E, v, h0, dh, kind, key, value, solves
         )
         # Chatter: the same event again and again, each within a hair's breadth of the last
         # (a contact whose force falls to zero again as soon as the re-planned active set

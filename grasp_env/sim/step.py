@@ -176,8 +176,9 @@ def try_step(
     model, q: np.ndarray, s: float, ds: float, E: np.ndarray, v: np.ndarray, h0: np.ndarray,
     dh: np.ndarray, guard: bool, solves: np.ndarray,
 ):  # fmt: skip
-    """Newton step to ``s + ds`` and its checks: ``(ok, q_new, kind, key)`` with the worst
-    check as the trigger of an event (``JAM`` when Newton fails).
+    """Newton step to ``s + ds`` and its checks: ``(ok, q_new, kind, key, value)`` with the
+    worst check as the trigger of an event and its value (``JAM`` and NaN when Newton
+    fails).
 
     With ``guard``, a Newton correction larger than half the predicted motion counts as a
     failure (over a long step it may have found another root of the equations).
@@ -189,9 +190,9 @@ def try_step(
         move = np.abs((q_pred - q) / model.scale).max()
         ok = np.abs((q_new - q_pred) / model.scale).max() <= 0.5 * move + model.tol
     if not ok:
-        return False, q, JAM, NONE
+        return False, q, JAM, NONE, np.nan
     value, kind, key = worst(*checks(model, q_new, h, E))
-    return value <= model.tol, q_new, kind, key
+    return value <= model.tol, q_new, kind, key, value
 
 
 @njit(cache=CACHE)
@@ -208,32 +209,63 @@ def event_of(kind: int, key: np.ndarray):
 
 
 @njit(cache=CACHE)
+def trigger_value(model, q, h, E, kind: int, key: np.ndarray) -> float:
+    """The value of the check ``(kind, key)`` at ``(q, h)``; NaN for a trigger without one
+    (a failed solve, the equilibrium residual) or when the check is not reported there."""
+    if kind == JAM or kind == EQUILIBRIUM:
+        return np.nan
+    value = value_of(*checks(model, q, h, E), kind, key)
+    return value if value > -np.inf else np.nan
+
+
+@njit(cache=CACHE)
 def locate(
     model, q: np.ndarray, s_lo: float, s_hi: float, E: np.ndarray, v: np.ndarray,
-    h0: np.ndarray, dh: np.ndarray, kind: int, key: np.ndarray, solves: np.ndarray,
+    h0: np.ndarray, dh: np.ndarray, kind: int, key: np.ndarray, value: float,
+    solves: np.ndarray,
 ):  # fmt: skip
     """The first point in ``(s_lo, s_hi]`` where the active set ``E`` stops being consistent,
-    to within ``tol`` (bisection on ``s``), from the trigger ``(kind, key)`` found at
-    ``s_hi``: ``(s, q, event kind, event keys)``. There the trigger's check sits within
-    tolerance of its limit and nothing is violated beyond it."""
+    to within ``tol``, from the trigger ``(kind, key)`` found at ``s_hi`` with ``value``:
+    ``(s, q, event kind, event keys)``. There the trigger's check sits within tolerance of
+    its limit and nothing is violated beyond it.
+
+    The bracket keeps a consistent ``s_lo`` and a violated ``s_hi``, as bisection does; the
+    next point is where the trigger's check, linear between the ends, reaches its limit
+    (regula falsi with the Illinois rule: an end kept twice in a row has its value halved),
+    and the midpoint whenever the check is not known at both ends (a failed solve, the
+    equilibrium residual, another check taking over).
+    """
     q_lo = q
+    lo_value = trigger_value(model, q, h0 + s_lo * dh, E, kind, key)
+    hi_value = value
+    kept = 0  # +1: s_lo was kept by the last point, -1: s_hi was
     for _ in range(200):
-        mid = 0.5 * (s_lo + s_hi)
+        width = s_hi - s_lo
+        if lo_value < 0.0 < hi_value:
+            t = lo_value / (lo_value - hi_value)
+            mid = s_lo + min(max(t, 1e-3), 1.0 - 1e-3) * width
+        else:
+            mid = s_lo + 0.5 * width
         if mid <= s_lo or mid >= s_hi:
             break
         h = h0 + mid * dh
         q_mid, ok = solve_pose(model, q_lo + v * (mid - s_lo), h, E, solves)
         if not ok:
-            s_hi, kind, key = mid, JAM, NONE
+            s_hi, kind, key, hi_value, lo_value, kept = mid, JAM, NONE, np.nan, np.nan, 0
             continue
         kinds, values, keys = checks(model, q_mid, h, E)
-        value, worst_kind, worst_key = worst(kinds, values, keys)
-        if value > model.tol:
-            s_hi, kind, key = mid, worst_kind, worst_key
-        elif (
-            kind != EQUILIBRIUM and kind != JAM
-            and value_of(kinds, values, keys, kind, key) >= -model.tol
-        ):  # fmt: skip
+        worst_value, worst_kind, worst_key = worst(kinds, values, keys)
+        if worst_value > model.tol:
+            same = worst_kind == kind and contact_sets.same(worst_key, key)
+            s_hi, kind, key, hi_value = mid, worst_kind, worst_key, worst_value
+            if not same:  # another check took over: its value at s_lo is not known
+                lo_value, kept = np.nan, 0
+            elif kept == 1:
+                lo_value *= 0.5
+            kept = 1
+            continue
+        mid_value = value_of(kinds, values, keys, kind, key)
+        if kind != EQUILIBRIUM and kind != JAM and mid_value >= -model.tol:
             if kind == OVERLAP:  # first touch: the vertex that touches
                 for i in range(kinds.shape[0]):
                     if kinds[i] == NEW_CONTACT:
@@ -241,8 +273,11 @@ def locate(
                         break
             event, event_keys = event_of(kind, key)
             return mid, q_mid, event, event_keys
-        else:
-            s_lo, q_lo = mid, q_mid
+        s_lo, q_lo = mid, q_mid
+        lo_value = mid_value if mid_value > -np.inf else np.nan
+        if kept == -1:
+            hi_value *= 0.5
+        kept = -1
     event, event_keys = event_of(kind, key)
     return s_lo, q_lo, event, event_keys
 
