@@ -1376,7 +1376,7 @@ def test_failed_fast_lp_retries_on_reference_path() -> None:
         from grasp_env.errors import SolverError
         from grasp_env.sim import velocity_lp
         calls = 0
-        def failing(V, xi, c):
+        def failing(*args):
             global calls
             calls += 1
             raise SolverError("injected", "fast path down")

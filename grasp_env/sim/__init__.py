@@ -72,8 +72,7 @@ def cache_writable(source: Path) -> bool:
 
     impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # renamed in numba 0.5x
     return any(
-        locator.from_function(probe, str(source)) is not None
-        for locator in impl._locator_classes
+        locator.from_function(probe, str(source)) is not None for locator in impl._locator_classes
     )
 
 

@@ -38,13 +38,16 @@ def reference_motion_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> tuple:
 @njit(cache=CACHE)
 def motion_lp(model, V: np.ndarray, xi: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, float]:
     """``min W v_y s.t. V v >= xi`` and its dual: ``(status, v, lam, value)``. The exact basis
-    enumeration, or HiGHS on the reference path and wherever the enumeration cannot decide
-    in double precision."""
+    enumeration; where it cannot decide at its tolerance, again with the looser dual
+    tolerance of a cost on the boundary of equilibrium (a force just reaching zero,
+    :data:`grasp_env.sim.velocity_lp.BOUNDARY_TOL`); HiGHS on the reference path and where
+    that cannot decide either."""
     if not model.reference_lp:
         cost = np.array([0.0, model.weight, 0.0])
-        status, v, lam, value, _ = velocity_lp.solve(V, xi, cost)
-        if status != velocity_lp.UNDECIDED:
-            return status, v, lam, value
+        for dual_tol in (velocity_lp.FEAS_TOL, velocity_lp.BOUNDARY_TOL):
+            status, v, lam, value, _ = velocity_lp.solve(V, xi, cost, dual_tol)
+            if status != velocity_lp.UNDECIDED:
+                return status, v, lam, value
     with objmode(status="int64", v="float64[:]", lam="float64[:]", value="float64"):
         status, v, lam, value = reference_motion_lp(V, xi, model.weight)
     return status, v, lam, value

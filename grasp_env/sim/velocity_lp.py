@@ -29,6 +29,12 @@ SINGULAR_TOL = 1e-13
 FEAS_TOL = 1e-9
 """Relative feasibility, sign and certificate tolerance (see :mod:`grasp_env.fastlp`)."""
 
+BOUNDARY_TOL = 1e-6
+"""A looser dual tolerance for a problem :data:`UNDECIDED` at :data:`FEAS_TOL`: the cost
+within about 1e-9 of the boundary of the cone of V's rows (a contact force that has just
+reached zero, where the simulator locates events), neither optimal nor unbounded at
+FEAS_TOL. At BOUNDARY_TOL it is optimal, with the force refit to zero."""
+
 ROUNDING = 16 * dense.EPS
 """Absolute rounding allowance on ``|det|``-scaled multipliers and slacks, per unit data."""
 
@@ -167,10 +173,11 @@ def _basis_solution(
 
 @njit(cache=CACHE)
 def _optimal_basis(
-    W: np.ndarray, xi: np.ndarray, c_r: np.ndarray
+    W: np.ndarray, xi: np.ndarray, c_r: np.ndarray, dual_tol: float
 ) -> tuple[bool, np.ndarray, np.ndarray]:
     """The primal-dual feasible basis with the largest ``|det|`` (exact ones first, then the
-    first in lexicographic order), as ``(found, u, lam)``.
+    first in lexicographic order), as ``(found, u, lam)``; multipliers down to ``-dual_tol``
+    times their sum count as non-negative.
 
     Tests ``|det|``-scaled quantities (``lam_B |det|``, ``u |det|``), whose rounding errors
     are a few ulps of ``|c|`` and ``|xi|_inf``; see :mod:`grasp_env.fastlp` for the
@@ -200,8 +207,8 @@ def _optimal_basis(
                     acc += G[k, j] * c_r[j]
                 lam_min = min(lam_min, sign * acc)
                 lam_sum += sign * acc
-            # min lam_B >= -FEAS_TOL sum(lam_B) (at least max|lam_B| where it can hold) - rounding
-            if lam_min + FEAS_TOL * lam_sum >= dual_round:
+            # min lam_B >= -dual_tol sum(lam_B) (at least max|lam_B| where it can hold) - rounding
+            if lam_min + dual_tol * lam_sum >= dual_round:
                 for j in range(r):
                     acc = 0.0
                     for k in range(r):
@@ -397,7 +404,7 @@ def _descent_ray(W: np.ndarray, c_r: np.ndarray) -> tuple[bool, np.ndarray]:
 
 @njit(cache=CACHE)
 def _outcome(
-    W: np.ndarray, xi: np.ndarray, c: np.ndarray, Q: np.ndarray, reduced: bool
+    W: np.ndarray, xi: np.ndarray, c: np.ndarray, Q: np.ndarray, reduced: bool, dual_tol: float
 ) -> tuple[int, np.ndarray, np.ndarray, float, np.ndarray]:
     """The three outcomes in coordinates ``W = V Q``, ``v = Q u`` (``reduced`` False: ``Q`` is
     the identity, unused). W has (near-)unit rows and rank ``r = W.shape[1]``; ``lam`` and a
@@ -415,7 +422,7 @@ def _outcome(
     none = np.empty(0)
     if not perp:
         if r > 0:
-            found, u, lam = _optimal_basis(W, xi, c_r)
+            found, u, lam = _optimal_basis(W, xi, c_r, dual_tol)
         else:  # V = 0 and c = 0: v = 0 is optimal unless some 0 >= xi_i fails
             found, u, lam = True, np.zeros(0), np.zeros(n)
             bound = FEAS_TOL * _abs_max(xi)
@@ -466,7 +473,7 @@ def _row_space(V: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
 
 @njit(cache=CACHE)
 def solve(
-    V: np.ndarray, xi: np.ndarray, c: np.ndarray
+    V: np.ndarray, xi: np.ndarray, c: np.ndarray, dual_tol: float = FEAS_TOL
 ) -> tuple[int, np.ndarray, np.ndarray, float, np.ndarray]:
     """The velocity LP ``min c^T v s.t. V v >= xi`` and its dual, for V (n, 3), xi (n,), c (3,).
 
@@ -476,7 +483,9 @@ def solve(
     :data:`UNDECIDED` (none of the three certified); arrays not returned are empty.
 
     Scaling row i (and ``xi_i``) by ``1 / |V_i|`` leaves the velocity LP unchanged and scales
-    ``lam_i`` by ``|V_i|``; zero rows are the constraints ``0 >= xi_i``.
+    ``lam_i`` by ``|V_i|``; zero rows are the constraints ``0 >= xi_i``. ``dual_tol``: how
+    negative (relative to their sum) a basis's multipliers may be and it still count as
+    optimal (:data:`FEAS_TOL`; :data:`BOUNDARY_TOL` for a second attempt).
     """
     n = V.shape[0]
     norm = np.empty(n)
@@ -505,7 +514,7 @@ def solve(
             U[t, j] = V[i, j] / norm[i]
         xi_u[t] = xi[i] / norm[i]
     W, Q, reduced = _row_space(U)
-    status, v, lam_u, value, cert = _outcome(W, xi_u, cost, Q, reduced)
+    status, v, lam_u, value, cert = _outcome(W, xi_u, cost, Q, reduced, dual_tol)
     if status == OPTIMAL:
         lam = np.zeros(n)
         for t in range(m):
