@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 import grasp_env.sim as sim
 
 
@@ -37,3 +39,36 @@ def test_no_writable_cache_folder_means_compiling_in_memory() -> None:
     )
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "False"
+
+
+def test_moves_that_leave_the_object_alone_skip_the_loop_exactly() -> None:
+    """A move whose hand stays clear of an object resting on the support skips the move
+    loop and keeps the old contacts; the loop (forced by not passing the known contacts)
+    gives the same pose, hand and contacts for the same moves, and the state is valid."""
+    from grasp_env import Simulator
+    from grasp_env.sim import move
+
+    sim = Simulator("fig13")
+    start = sim.reset()
+    assert {c.body for c in start.contacts} == {"support"}
+    known = np.array([c.key for c in start.contacts], dtype=np.int64)
+    rng = np.random.default_rng(3)
+    skipped = 0
+    for _ in range(200):
+        h1 = start.hand + rng.uniform(-1, 1, 5) * np.array([0.02, 0.02, 0.05, 0.3, 0.3])
+        fast = move.move_hand(
+            sim.model, start.object_pose, start.hand, h1, known, True, sim._solves
+        )
+        loop = move.move_hand(
+            sim.model, start.object_pose, start.hand, h1, known, False, sim._solves
+        )
+        assert not loop[7]
+        np.testing.assert_array_equal(fast[0], loop[0])
+        np.testing.assert_array_equal(fast[1], loop[1])
+        if fast[7]:
+            skipped += 1
+            keys, _, _, gaps, forces = loop[8]
+            np.testing.assert_array_equal(keys, known)
+            np.testing.assert_array_equal(forces, [c.force for c in start.contacts])
+            np.testing.assert_array_equal(gaps, [c.gap for c in start.contacts])
+    assert skipped > 50, skipped

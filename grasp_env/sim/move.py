@@ -83,14 +83,15 @@ def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
 @njit(cache=CACHE)
 def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known: np.ndarray):
     """Whether a move ``dh`` from ``h0`` leaves alone an object resting on the support
-    alone: every hand body stays farther from it than the checks look (``0.05 size + 10
-    tol``) all along. A body's separating distance along its best axis changes by at most
-    how far its vertices move (:func:`grasp_env.sim.hand.vertex_speeds`)."""
+    alone: every hand body stays farther from it than contact detection looks (``10 tol``)
+    all along, so no contact is made or lost and the object stays at rest. A body's
+    separating distance along its best axis changes by at most how far its vertices move
+    (:func:`grasp_env.sim.hand.vertex_speeds`)."""
     if not contact_sets.all_on_support(known):
         return False
     world = place(model, q, h0)
     travel = vertex_speeds(model, dh)
-    margin = 0.05 * model.size + 10.0 * model.tol
+    margin = 10.0 * model.tol
     for b in range(1, 4):
         if separation(world, model.n_object, model.n_vertices, b) <= travel[b - 1] + margin:
             return False
