@@ -230,14 +230,17 @@ def locate(
     its limit and nothing is violated beyond it.
 
     The bracket keeps a consistent ``s_lo`` and a violated ``s_hi``, as bisection does; the
-    next point is where the trigger's check, linear between the ends, reaches its limit
-    (regula falsi with the Illinois rule: an end kept twice in a row has its value halved),
-    and the midpoint whenever the check is not known at both ends (a failed solve, the
-    equilibrium residual, another check taking over).
+    next point is where the trigger's check, linear between the ends, reaches the middle of
+    the consistent half of its band, ``-tol / 2`` (regula falsi with the Illinois rule: an
+    end kept twice in a row has its value halved), and the midpoint whenever the check is
+    not known at both ends (a failed solve, the equilibrium residual, another check taking
+    over). Aiming inside the band rather than at the limit itself leaves a located contact
+    force clearly positive or a gap clearly closed, not at a degenerate zero.
     """
     q_lo = q
-    lo_value = trigger_value(model, q, h0 + s_lo * dh, E, kind, key)
-    hi_value = value
+    target = -0.5 * model.tol  # mid-band, on the consistent side, as bisection lands on average
+    lo_value = trigger_value(model, q, h0 + s_lo * dh, E, kind, key) - target
+    hi_value = value - target
     kept = 0  # +1: s_lo was kept by the last point, -1: s_hi was
     for _ in range(200):
         width = s_hi - s_lo
@@ -257,7 +260,7 @@ def locate(
         worst_value, worst_kind, worst_key = worst(kinds, values, keys)
         if worst_value > model.tol:
             same = worst_kind == kind and contact_sets.same(worst_key, key)
-            s_hi, kind, key, hi_value = mid, worst_kind, worst_key, worst_value
+            s_hi, kind, key, hi_value = mid, worst_kind, worst_key, worst_value - target
             if not same:  # another check took over: its value at s_lo is not known
                 lo_value, kept = np.nan, 0
             elif kept == 1:
@@ -274,7 +277,7 @@ def locate(
             event, event_keys = event_of(kind, key)
             return mid, q_mid, event, event_keys
         s_lo, q_lo = mid, q_mid
-        lo_value = mid_value if mid_value > -np.inf else np.nan
+        lo_value = mid_value - target if mid_value > -np.inf else np.nan
         if kept == -1:
             hi_value *= 0.5
         kept = -1
