@@ -28,6 +28,21 @@ import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
 from benchmarks.common import OUT, headless, table, write
 
 BASELINES = ("LunarLander-v3", "CartPole-v1")
+#: The env configurations stepped with random actions.
+CONFIGS = (
+    {},
+    {"palm_control": True},
+    {"shape_randomizer": True, "palm_control": True},
+    {"start": "preliftoff"},
+)
+#: Targets: (configuration, baseline, least ratio).
+TARGETS = (
+    ({}, "LunarLander-v3", 1.0),
+    ({}, "CartPole-v1", 0.5),
+    ({"start": "preliftoff"}, "LunarLander-v3", 0.5),
+    ({"palm_control": True}, "LunarLander-v3", 1.0),
+    ({"shape_randomizer": True, "palm_control": True}, "LunarLander-v3", 1.0),
+)
 ACTION_BLOCK = 4096  #: random actions drawn per call to the generator
 
 
@@ -104,6 +119,12 @@ class Runner:
         return n / elapsed
 
 
+def _name(kwargs: dict) -> str:
+    """A configuration's row name."""
+    args = ", ".join(f"{k}={v!r}" for k, v in kwargs.items())
+    return f"FrictionlessGrasp-v0 ({args or 'default'})"
+
+
 def scripted_runner() -> tuple[Runner | None, str]:
     """The scripted policy on ``start="preliftoff"``, or None and the reason it is absent."""
     try:
@@ -127,11 +148,8 @@ def make_runners() -> tuple[list[Runner], list[str]]:
     """Our env configurations, the scripted policy and the baselines that can be built."""
     notes = []
     ours: list[tuple[str, Callable[[], gym.Env]]] = [
-        ("FrictionlessGrasp-v0 (default)", lambda: gym.make("FrictionlessGrasp-v0")),
-        (
-            "FrictionlessGrasp-v0 (palm_control=True)",
-            lambda: gym.make("FrictionlessGrasp-v0", palm_control=True),
-        ),
+        (_name(kwargs), lambda kwargs=kwargs: gym.make("FrictionlessGrasp-v0", **kwargs))
+        for kwargs in CONFIGS
     ]
     ours += [(name, lambda name=name: gym.make(name)) for name in BASELINES]
     runners = []
@@ -180,14 +198,17 @@ def run(
             row.append(f"{statistics.median(ratios):.4f}")
         rows.append(row)
         runner.env.close()
-    target = ""
-    if "LunarLander-v3" in base:
-        lunar = base["LunarLander-v3"].rates
-        ratio = statistics.median(x / y for x, y in zip(runners[0].rates, lunar, strict=True))
-        target = (
-            f"Target: random-action steps/s (default kwargs) >= LunarLander-v3: "
-            f"{ratio:.3f} of it ({'met' if ratio >= 1.0 else 'not met'})."
-        )
+    by_name = {runner.name: runner for runner in runners}
+    targets = []
+    for kwargs, baseline, least in TARGETS:
+        name = _name(kwargs)
+        if baseline not in base or name not in by_name:
+            targets.append(f"* {name} >= {least:g}x {baseline}: not measured")
+            continue
+        pairs = zip(by_name[name].rates, base[baseline].rates, strict=True)
+        ratio = statistics.median(x / y for x, y in pairs)
+        verdict = "met" if ratio >= least else "not met"
+        targets.append(f"* {name} >= {least:g}x {baseline}: **{ratio:.3f}x** ({verdict})")
     body = [
         f"{rounds} rounds x {budget:g} s per env, rotated order; random actions from a "
         "seeded Generator in blocks; `render_mode=None`; resets inside the timing; ratios "
@@ -196,7 +217,10 @@ def run(
         "",
         *table(header, rows),
         "",
-        target,
+        "Targets (random actions):",
+        "",
+        *targets,
+        "",
         *[f"* {note}" for note in notes],
     ]
     return write(out, "Env throughput (single process)", body)

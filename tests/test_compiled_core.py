@@ -14,12 +14,14 @@ import grasp_env.sim as sim
 
 
 def test_cache_is_used_where_it_can_be_written(tmp_path: Path) -> None:
-    """The package's own folder is writable here, and any folder numba can write to
-    counts."""
-    assert sim.cache_writable(Path(sim.__file__))
+    """The package's own folder is writable here (unless ``NUMBA_CACHE_DIR`` is set), and
+    any folder numba can write to counts."""
+    if "NUMBA_CACHE_DIR" not in os.environ:
+        assert sim.CACHE_FOLDER == Path(sim.__file__).parent / "__pycache__"
+    assert sim.CACHE
     module = tmp_path / "module.py"
     module.write_text("")
-    assert sim.cache_writable(module)
+    assert sim.cache_folder(module) is not None
 
 
 def test_no_writable_cache_folder_means_compiling_in_memory() -> None:
@@ -32,13 +34,13 @@ def test_no_writable_cache_folder_means_compiling_in_memory() -> None:
     env["HOME"] = "/proc/1/no-home"
     code = (
         "from pathlib import Path; import grasp_env.sim as sim; "
-        "print(sim.cache_writable(Path('/proc/1/no-package/module.py')))"
+        "print(sim.cache_folder(Path('/proc/1/no-package/module.py')))"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
     )
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.strip() == "False"
+    assert out.stdout.strip() == "None"
 
 
 def test_moves_that_leave_the_object_alone_skip_the_loop_exactly() -> None:

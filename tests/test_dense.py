@@ -110,20 +110,21 @@ def test_nnls_is_unit_free() -> None:
 
 
 def test_stale_kernel_cache_is_cleared(tmp_path) -> None:
-    """Editing any kernel module clears the package's numba cache (cached callers would keep
-    a callee's old code); unchanged sources keep it."""
+    """Editing any kernel module clears the package's numba cache, wherever it is (cached
+    callers would keep a callee's old code); unchanged sources keep it."""
     from grasp_env.sim import drop_stale_cache
 
     (tmp_path / "a.py").write_text("x = 1\n")
-    cache = tmp_path / "__pycache__"
-    cache.mkdir()
+    cache = tmp_path / "elsewhere" / "cache"
+    cache.mkdir(parents=True)
     (cache / "a.f-1.py311.nbi").write_text("index")
     (cache / "a.f-1.py311.1.nbc").write_text("code")
-    assert drop_stale_cache(tmp_path)  # no stamp yet: whatever is there is of unknown code
+    assert drop_stale_cache(tmp_path, cache)  # no stamp yet: whatever is there is of unknown code
     assert not list(cache.glob("*.nb?"))
     (cache / "a.f-1.py311.nbi").write_text("index")
-    assert not drop_stale_cache(tmp_path)
+    assert not drop_stale_cache(tmp_path, cache)
     assert (cache / "a.f-1.py311.nbi").exists()
     (tmp_path / "b.py").write_text("y = 2\n")
-    assert drop_stale_cache(tmp_path)
+    assert drop_stale_cache(tmp_path, cache)
     assert not (cache / "a.f-1.py311.nbi").exists()
+    assert not drop_stale_cache(tmp_path, None)  # no cache folder: nothing to clear

@@ -33,18 +33,20 @@ from pathlib import Path
 from numba.core import caching
 
 
-def drop_stale_cache(package: Path) -> bool:
-    """Clear numba's on-disk cache of the kernels in ``package`` when their sources changed.
+def drop_stale_cache(package: Path, cache: Path | None) -> bool:
+    """Clear numba's on-disk cache ``cache`` of the code in ``package`` when its sources
+    changed.
 
-    numba checks a cached kernel against the file that defines it only, but these kernels
-    call each other across modules: after an edit of one module, cached callers would keep
-    its old code. So the cache is stamped with a digest of all the package's sources and
-    cleared when that changes. Where the cache cannot be written nothing happens (numba then
-    compiles in memory). Returns whether a stale cache was cleared.
+    numba checks a cached function against the file that defines it only, but these
+    functions call each other across modules: after an edit of one module, cached callers
+    would keep its old code. So the cache is stamped with a digest of all the package's
+    sources and cleared when that changes. Without a cache (None), or where it cannot be
+    written, nothing happens. Returns whether a stale cache was cleared.
     """
+    if cache is None:
+        return False
     sources = b"".join(p.read_bytes() for p in sorted(package.glob("*.py")))
     digest = hashlib.sha256(sources).hexdigest()
-    cache = package / "__pycache__"
     stamp = cache / "kernel_sources.sha256"
     try:
         if stamp.read_text() == digest:
@@ -52,7 +54,7 @@ def drop_stale_cache(package: Path) -> bool:
     except OSError:
         pass
     try:
-        cache.mkdir(exist_ok=True)
+        cache.mkdir(parents=True, exist_ok=True)
         stale = [f for pattern in ("*.nbi", "*.nbc") for f in cache.glob(pattern)]
         for f in stale:
             f.unlink(missing_ok=True)
@@ -62,23 +64,27 @@ def drop_stale_cache(package: Path) -> bool:
     return bool(stale)
 
 
-def cache_writable(source: Path) -> bool:
-    """Whether numba can cache functions of the file ``source`` on disk: in the
-    ``__pycache__`` beside it, in ``NUMBA_CACHE_DIR`` or in the user's cache folder (numba's
-    own locators, tried in its order)."""
+def cache_folder(source: Path) -> Path | None:
+    """The folder numba caches the functions of the file ``source`` in: the first of its own
+    locators (``NUMBA_CACHE_DIR``, the ``__pycache__`` beside the file, the user's cache
+    folder) that can be written; None when none can."""
 
     def probe() -> None:
         """A function of ``source``, as numba's locators see one."""
 
     impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # renamed in numba 0.5x
-    return any(
-        locator.from_function(probe, str(source)) is not None for locator in impl._locator_classes
-    )
+    for locator in impl._locator_classes:
+        found = locator.from_function(probe, str(source))
+        if found is not None:
+            return Path(found.get_cache_path())
+    return None
 
 
-#: Whether the compiled code is cached on disk. Where no cache folder can be written (a
-#: read-only install with no writable home or ``NUMBA_CACHE_DIR``), it is compiled in
-#: memory in each process instead.
-CACHE = cache_writable(Path(__file__))
+#: Where the compiled code is cached on disk (the same folder for every module here), or
+#: None where no cache folder can be written (a read-only install with no writable home or
+#: ``NUMBA_CACHE_DIR``): it is then compiled in memory in each process.
+CACHE_FOLDER = cache_folder(Path(__file__))
+#: Whether the compiled code is cached on disk (numba's ``cache=``).
+CACHE = CACHE_FOLDER is not None
 
-drop_stale_cache(Path(__file__).parent)
+drop_stale_cache(Path(__file__).parent, CACHE_FOLDER)
