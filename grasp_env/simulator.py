@@ -36,7 +36,7 @@ from grasp_env.scene import Scene, load_scene
 from grasp_env.sim import events as ev
 from grasp_env.sim import move
 from grasp_env.sim.equilibrium import MAX_FORCE
-from grasp_env.sim.model import Model
+from grasp_env.sim.model import Model, pack
 from grasp_env.state import Event, State
 from grasp_env.width import object_width
 
@@ -111,13 +111,23 @@ class Simulator:
         self.size = size  # the object's size: its farthest vertex from the centre of mass
         self.fall_step = float(fall_step) * size
         self._solves = np.zeros(1, dtype=np.int64)  # pose solves of the current call
-        self.model = self._model(size)
-        self._joint_low, self._joint_high = self.scene.joint_limits.T.copy()
+        self.model = self._build_model(size)
+        self._joint_low, self._joint_high = self.scene.joint_limits.T.tolist()
         self._last: tuple = (None, _NO_KEYS)  # the last state made, and its contact keys
         self.rho = self.model.rho
         self.newton_tol = self.model.newton_tol
 
-    def _model(self, size: float) -> Model:
+    @property
+    def model(self) -> Model:
+        """The scene and this simulator's settings as the compiled core's arrays."""
+        return self._model
+
+    @model.setter
+    def model(self, model: Model) -> None:
+        self._model = model
+        self._packed = pack(model)  # the form in which it crosses into compiled code
+
+    def _build_model(self, size: float) -> Model:
         """The scene and this simulator's settings as the compiled core's arrays."""
         scene = self.scene
         L = scene.palm.width
@@ -204,26 +214,29 @@ class Simulator:
             SimulationError: a solve failed, and again on the reference LP path with smaller
                 increments.
         """
-        h0 = state.hand.copy()
+        h0 = state.hand  # the compiled move writes into none of its inputs
         h1 = h0.copy()
         events: list[Event] = []
         if palm is not None:
             h1[:3] = _finite_vector(palm, 3, "palm")
         if fingers is not None:
-            target = _finite_vector(fingers, 2, "fingers")
-            clipped = np.minimum(np.maximum(target, self._joint_low), self._joint_high)
-            if (clipped != target).any():
+            target = _finite_vector(fingers, 2, "fingers").tolist()
+            (low1, low2), (high1, high2) = self._joint_low, self._joint_high
+            f1, f2 = min(max(target[0], low1), high1), min(max(target[1], low2), high2)
+            if f1 != target[0] or f2 != target[1]:
                 events.append(Event("joint_limit", 1.0))
-            h1[3:] = clipped
+            h1[3], h1[4] = f1, f2
         model = self.model
         if state is self._last[0]:
             known = self._last[1]  # a state this simulator made: its keys are at hand
         else:
             known = np.array([c.key for c in state.contacts], dtype=np.int64).reshape(-1, 4)
-        q0 = state.object_pose.copy()
+        q0 = state.object_pose
         self._solves[0] = 0
         try:
-            out = _compiled(move.move_hand, model, q0, h0, h1, known, True, self._solves)
+            out = _compiled(
+                move.move_hand_packed, *self._packed, q0, h0, h1, known, True, self._solves
+            )
         except WorkLimitError:
             raise  # the retry would do the same work again, and more
         except (SimulationError, SolverError) as first:
@@ -234,7 +247,10 @@ class Simulator:
                 reference_lp=True, max_step=model.max_step / 4, fall_step=model.fall_step / 4
             )
             try:
-                out = _compiled(move.move_hand, careful, q0, h0, h1, _NO_KEYS, False, self._solves)
+                out = _compiled(
+                    move.move_hand_packed, *pack(careful), q0, h0, h1, _NO_KEYS, False,
+                    self._solves,
+                )  # fmt: skip
             except WorkLimitError:
                 raise
             except (SimulationError, SolverError) as second:

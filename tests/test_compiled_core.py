@@ -74,3 +74,18 @@ def test_moves_that_leave_the_object_alone_skip_the_loop_exactly() -> None:
             np.testing.assert_array_equal(forces, [c.force for c in start.contacts])
             np.testing.assert_array_equal(gaps, [c.gap for c in start.contacts])
     assert skipped > 50, skipped
+
+
+def test_a_model_crosses_into_compiled_code_unchanged() -> None:
+    """``pack`` then the compiled ``unpack`` give back every field of the model, with the
+    same types (so the same compiled code runs for both)."""
+    from grasp_env import Simulator
+    from grasp_env.sim.model import FIELDS, pack, unpack
+
+    for kwargs in ({}, {"lp_solver": "highs", "max_solves": 7, "max_iterations": 123}):
+        model = Simulator("tall_rectangle", **kwargs).model
+        back = unpack(*pack(model))
+        for name in FIELDS:
+            value, got = getattr(model, name), getattr(back, name)
+            assert type(value) is type(got) or isinstance(value, float | np.floating), name
+            np.testing.assert_array_equal(got, value, err_msg=name)

@@ -552,7 +552,7 @@ class FrictionlessGraspEnv(gym.Env):
         self._steps += 1
         try:
             new = self._simulate(state, a)
-            if not (np.isfinite(new.object_pose).all() and np.isfinite(new.hand).all()):
+            if not all(map(math.isfinite, new.object_pose.tolist() + new.hand.tolist())):
                 raise SimulationError(
                     f"non-finite state: object {new.object_pose}, hand {new.hand}"
                 )

@@ -9,6 +9,11 @@ from __future__ import annotations
 
 from collections import namedtuple
 
+import numpy as np
+from numba import njit
+
+from grasp_env.sim import CACHE
+
 #: Fields of :class:`Model`, with what they hold.
 FIELDS = {
     "points": "stacked body-frame vertices then edge normals (grasp_env.sim.placement)",
@@ -38,3 +43,28 @@ FIELDS = {
 
 Model = namedtuple("Model", list(FIELDS))
 Model.__doc__ = "The compiled simulator's view of one scene; see :data:`FIELDS`."
+
+
+#: The fields that travel as one float array when a Model crosses from Python into compiled
+#: code (:func:`pack`): checking a named tuple's 22 fields' types costs more than the move
+#: it carries when the hand touches nothing; arrays cross at once.
+ARRAYS = ("points", "body", "scale", "per_length", "gravity", "reach")
+NUMBERS = tuple(name for name in FIELDS if name not in ARRAYS)
+
+
+def pack(model: Model) -> tuple:
+    """``model`` as its arrays and one float array of its numbers (:func:`unpack`)."""
+    numbers = np.array([float(getattr(model, name)) for name in NUMBERS])
+    return (*(getattr(model, name) for name in ARRAYS), numbers)
+
+
+@njit(cache=CACHE)
+def unpack(points, body, scale, per_length, gravity, reach, numbers: np.ndarray) -> Model:
+    """The :class:`Model` :func:`pack` made (fields in :data:`FIELDS` order)."""
+    n_object, n_vertices, half, tol, newton_tol, ftol, size, rho, weight, length = numbers[:10]
+    max_step, fall_step, max_iterations, max_solves, thinnest, reference_lp = numbers[10:]
+    return Model(
+        points, body, int(n_object), int(n_vertices), half, tol, newton_tol, ftol, size, rho,
+        weight, length, scale, per_length, gravity, max_step, fall_step, int(max_iterations),
+        int(max_solves), reach, thinnest, reference_lp != 0.0,
+    )  # fmt: skip

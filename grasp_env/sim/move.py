@@ -39,6 +39,7 @@ from grasp_env.sim.events import (
 )  # fmt: skip
 from grasp_env.sim.fall import fall, fall_if_unheld, held_here, nudge_and_fall, touching
 from grasp_env.sim.hand import support_limit, vertex_speeds
+from grasp_env.sim.model import unpack
 from grasp_env.sim.placement import contact_rows, place
 from grasp_env.sim.step import locate, sweep_limit, try_step
 
@@ -110,7 +111,8 @@ def move_hand(
 
     ``untouched``: the object rested on the support alone (``known``, when ``use_known``) and
     no hand body came near it (:func:`hand_stays_clear`), so nothing about it changed; the
-    move loop and ``rest`` (then empty) are skipped.
+    move loop and ``rest`` (then empty) are skipped. A non-finite end state raises
+    ``SimulationError``.
     """
     s_end, blocked = support_limit(model, h0, h1)
     dh = h1 - h0
@@ -121,6 +123,8 @@ def move_hand(
         return q.copy(), h, s_end, s_end, blocked, False, new_log(), True, rest
     q, s, jammed, events = move(model, q, h0, h1, s_end, known, use_known, solves)
     h = h0 + s * dh
+    if not (np.isfinite(q).all() and np.isfinite(h).all()):
+        raise SimulationError("the move ended in a non-finite state")
     return q, h, s, s_end, blocked, jammed, events, False, at_rest(model, q, h)
 
 
@@ -314,3 +318,14 @@ def at_rest(model, q: np.ndarray, h: np.ndarray):
     keys = touching(model, world, contact_sets.empty())
     P, N, F, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
     return keys, P, N, F, rest_forces(model, world, q[:2], keys)
+
+
+@njit(cache=CACHE)
+def move_hand_packed(
+    points, body, scale, per_length, gravity, reach, numbers, q, h0, h1, known, use_known,
+    solves,
+):  # fmt: skip
+    """:func:`move_hand` of a model in its :func:`grasp_env.sim.model.pack` form: the entry
+    point from Python, where a model crosses as arrays."""
+    model = unpack(points, body, scale, per_length, gravity, reach, numbers)
+    return move_hand(model, q, h0, h1, known, use_known, solves)
