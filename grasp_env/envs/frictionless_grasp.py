@@ -662,7 +662,10 @@ class FrictionlessGraspEnv(gym.Env):
         lift = self.gamma * phi - self._phi
         self._phi = phi
         drop = -weights["drop"] if dropped else 0.0
-        ctrl = -weights["ctrl"] * float((a * a).sum())
+        effort = 0.0  # sum of squares, in index order (as numpy sums so few terms)
+        for x in a.tolist():
+            effort += x * x
+        ctrl = -weights["ctrl"] * effort
         terms = map(float, (bonus, grip, lift, drop, ctrl))
         reward_info = dict(zip(_REWARD_KEYS, terms, strict=True))
         return float(sum(reward_info.values())), reward_info
