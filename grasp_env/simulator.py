@@ -323,8 +323,11 @@ def _events(log: list) -> list[Event]:
 
 def _finite_vector(value, size: int, name: str) -> np.ndarray:
     """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``."""
-    if type(value) is np.ndarray and value.dtype.kind == "f" and value.shape == (size,):
-        if np.abs(value).max() < math.inf:  # the common case; NaN compares False
+    if type(value) is tuple and len(value) == size and all(type(x) is float for x in value):
+        if all(map(math.isfinite, value)):  # the common case: a tuple of Python floats
+            return np.array(value)
+    elif type(value) is np.ndarray and value.dtype.kind == "f" and value.shape == (size,):
+        if np.abs(value).max() < math.inf:  # NaN compares False
             return value.astype(float)
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)

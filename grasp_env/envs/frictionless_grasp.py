@@ -610,13 +610,11 @@ class FrictionlessGraspEnv(gym.Env):
         """:meth:`simulate_action` of a checked action (floats in [-1, 1])."""
         h, a = state.hand.tolist(), a.tolist()
         step = self.max_finger_step
-        fingers = np.array([h[3] + step * a[0], h[4] - step * a[1]])  # both close for a > 0
+        fingers = (h[3] + step * a[0], h[4] - step * a[1])  # both close for a > 0
         palm = None
         if self.palm_control:
             low, high, step = self._palm_box
-            palm = np.array(
-                [min(max(h[i] + step[i] * a[2 + i], low[i]), high[i]) for i in range(3)]
-            )
+            palm = tuple(min(max(h[i] + step[i] * a[2 + i], low[i]), high[i]) for i in range(3))
         return self._sim.move_hand(state, palm=palm, fingers=fingers)
 
     def _palm_limits(self, scene: Scene) -> tuple[list, list, list]:
@@ -792,6 +790,11 @@ class RestoreOnError(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def __init__(self, env: gym.Env) -> None:
         gym.utils.RecordConstructorArgs.__init__(self)
         gym.Wrapper.__init__(self, env)
+        self._inner = []  # the wrappers between this one and the env, fixed once made
+        inner = env
+        while isinstance(inner, gym.Wrapper):
+            self._inner.append(inner)
+            inner = inner.env
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         return self._restoring(self.env.reset, seed=seed, options=options)
@@ -800,10 +803,7 @@ class RestoreOnError(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return self._restoring(self.env.step, action)
 
     def _restoring(self, call: Callable, *args: Any, **kwargs: Any) -> Any:
-        saved, env = [], self.env
-        while isinstance(env, gym.Wrapper):
-            saved.append((env, vars(env).copy()))
-            env = env.env
+        saved = [(wrapper, vars(wrapper).copy()) for wrapper in self._inner]
         try:
             return call(*args, **kwargs)
         except Exception:
