@@ -52,23 +52,6 @@ def hand_polygons_W(scene: Scene, h: np.ndarray) -> list[np.ndarray]:
     ]
 
 
-def lowest_hand_points(scene: Scene, H: np.ndarray) -> np.ndarray:
-    """Lowest world height of any hand vertex for each configuration row of ``H`` (m, 5).
-
-    Vectorised over configurations: the support check of a hand move scans many at once.
-    """
-    H = np.atleast_2d(H)
-    th = H[:, 2]
-    half = scene.palm.width / 2.0
-    y = (H[:, 1], H[:, 1] - np.sin(th) * half, H[:, 1] + np.sin(th) * half)
-    phi = (th, th + H[:, 3], th + H[:, 4])
-    low = np.full(len(H), np.inf)
-    for yb, pb, poly in zip(y, phi, hand_polygons_local(scene), strict=True):
-        heights = yb[:, None] + np.sin(pb)[:, None] * poly[:, 0] + np.cos(pb)[:, None] * poly[:, 1]
-        low = np.minimum(low, heights.min(axis=1))
-    return low
-
-
 def body_twists_W(scene: Scene, h: np.ndarray, dh: np.ndarray) -> np.ndarray:
     """Twists ``(vx, vy, omega)`` of the palm and finger frames' origins for ``dh``, shape (3, 3).
 

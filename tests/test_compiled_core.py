@@ -89,3 +89,40 @@ def test_a_model_crosses_into_compiled_code_unchanged() -> None:
             value, got = getattr(model, name), getattr(back, name)
             assert type(value) is type(got) or isinstance(value, float | np.floating), name
             np.testing.assert_array_equal(got, value, err_msg=name)
+
+
+def test_contact_velocities_match_the_reference() -> None:
+    """The compiled ``xi`` (eq. 20) of hand-body contacts equals
+    :func:`grasp_env.mechanics.xi`, the reference, for random hand motions, points and
+    normals, on every body (zero on the support)."""
+    from grasp_env import Simulator, mechanics
+    from grasp_env.sim.hand import contact_xi
+
+    sim = Simulator("fig13")
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        h = sim.scene.initial_hand + rng.normal(size=5) * 0.3
+        dh = rng.normal(size=5)
+        bodies = rng.integers(0, 4, size=6)
+        keys = np.zeros((6, 4), dtype=np.int64)
+        keys[:, 0] = bodies
+        P = rng.normal(size=(6, 2))
+        N = rng.normal(size=(6, 2))
+        N /= np.linalg.norm(N, axis=1)[:, None]
+        got = contact_xi(sim.model, h, dh, keys, P, N)
+        want = mechanics.xi(sim.scene, h, dh, bodies, P, N)
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+def test_lowest_hand_point_matches_the_hand_polygons() -> None:
+    """The compiled lowest hand vertex equals the lowest vertex of
+    :func:`grasp_env.kinematics.hand_polygons_W`, the reference, for random hands."""
+    from grasp_env import Simulator, kinematics
+    from grasp_env.sim.hand import lowest_point
+
+    sim = Simulator("tall_rectangle")
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        h = sim.scene.initial_hand + rng.normal(size=5) * 0.5
+        want = min(float(p[:, 1].min()) for p in kinematics.hand_polygons_W(sim.scene, h))
+        assert abs(lowest_point(sim.model, h) - want) <= 1e-14
