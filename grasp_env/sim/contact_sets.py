@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from grasp_env.sim import CACHE
-from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows
+from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
 
 NONE = np.full(4, -1, dtype=np.int64)
 
@@ -128,12 +128,12 @@ def choices(model, world: np.ndarray, keys: np.ndarray) -> list:
 
 
 @njit(cache=CACHE)
-def supporting_pairs(model, world: np.ndarray, keys: np.ndarray) -> np.ndarray:
+def supporting_pairs(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray) -> np.ndarray:
     """``keys`` with the contacts of each straight edge that holds three or more object
-    vertices reduced to its outermost two (the pair farthest apart, first found); ``keys``
-    itself when there are none."""
+    vertices reduced to its outermost two at ``(q, h)`` (the pair farthest apart, first
+    found); ``keys`` itself when there are none (then nothing is placed)."""
     m = keys.shape[0]
-    P = contact_rows(world, model.n_object, model.n_vertices, keys)[0]
+    P = np.empty((0, 2))  # contact points, placed only when an edge holds three or more
     keep = np.ones(m, dtype=np.bool_)
     reduced = False
     for i in range(m):
@@ -149,6 +149,8 @@ def supporting_pairs(model, world: np.ndarray, keys: np.ndarray) -> np.ndarray:
                    and keys[j, 3] == keys[i, 3]]  # fmt: skip
         if len(members) < 3:
             continue
+        if P.shape[0] == 0:
+            P = contact_rows(place(model, q, h), model.n_object, model.n_vertices, keys)[0]
         best, a, b = -1.0, -1, -1
         for x in range(len(members)):
             for y in range(x + 1, len(members)):

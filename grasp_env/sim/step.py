@@ -64,7 +64,7 @@ def newton(model, q0: np.ndarray, h: np.ndarray, E: np.ndarray, solves: np.ndarr
     """
     if E.shape[0] == 0:
         return q0.copy(), True
-    core = contact_sets.supporting_pairs(model, place(model, q0, h), E)
+    core = contact_sets.supporting_pairs(model, q0, h, E)
     count_solve(model, solves)
     q, ok = pose.newton(
         model.points, model.body, model.n_object, model.n_vertices, model.half, q0, h, core,
