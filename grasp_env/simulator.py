@@ -214,40 +214,51 @@ class Simulator:
             SimulationError: a solve failed, and again on the reference LP path with smaller
                 increments.
         """
-        h0 = state.hand  # the compiled move writes into none of its inputs
-        h1 = h0.copy()
-        events: list[Event] = []
+        target = state.hand.tolist()
+        joint_limit = False
         if palm is not None:
-            h1[:3] = _finite_vector(palm, 3, "palm")
+            target[:3] = _finite_floats(palm, 3, "palm")
         if fingers is not None:
-            target = _finite_vector(fingers, 2, "fingers").tolist()
+            f1, f2 = _finite_floats(fingers, 2, "fingers")
             (low1, low2), (high1, high2) = self._joint_low, self._joint_high
-            f1, f2 = min(max(target[0], low1), high1), min(max(target[1], low2), high2)
-            if f1 != target[0] or f2 != target[1]:
-                events.append(Event("joint_limit", 1.0))
-            h1[3], h1[4] = f1, f2
-        model = self.model
+            target[3], target[4] = min(max(f1, low1), high1), min(max(f2, low2), high2)
+            joint_limit = target[3] != f1 or target[4] != f2
         if state is self._last[0]:
             known = self._last[1]  # a state this simulator made: its keys are at hand
         else:
             known = np.array([c.key for c in state.contacts], dtype=np.int64).reshape(-1, 4)
-        q0 = state.object_pose
+        out, log, keys, rows = self._move(state.object_pose, state.hand, np.array(target), known)
+        s_reached, s_end, blocked, jammed, untouched = out[move.OUT_S :].tolist()
+        events = [Event("joint_limit", 1.0)] if joint_limit else []
+        if log:
+            events.extend(_events(log))
+        # The hand is blocked by the support only if it got there (a jam may stop it first).
+        blocked = bool(blocked) and not (jammed and s_reached < s_end)
+        if blocked:
+            events.append(Event("hand_blocked", s_end))
+        q, h = out[move.OUT_Q], out[move.OUT_H]
+        if untouched:  # the object and its contacts are as they were
+            return self._new_state(q, h, state.contacts, known, events, False, blocked)
+        return self._state(q, h, keys, rows, events, bool(jammed), blocked)
+
+    def _move(self, q0: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray):
+        """The compiled move (:func:`grasp_env.sim.move.move_hand`), retried once on the
+        reference LP path with a quarter of the increment and fall step if a solve fails
+        (nothing of the failed attempt is kept); a second failure is reported."""
         self._solves[0] = 0
         try:
-            out = _compiled(
+            return _compiled(
                 move.move_hand_packed, *self._packed, q0, h0, h1, known, True, self._solves
             )
         except WorkLimitError:
             raise  # the retry would do the same work again, and more
         except (SimulationError, SolverError) as first:
-            # A failed solve: once more on the reference LP path with a quarter of the
-            # increment and fall step (nothing of the failed attempt is kept); a second
-            # failure is reported.
+            model = self.model
             careful = model._replace(
                 reference_lp=True, max_step=model.max_step / 4, fall_step=model.fall_step / 4
             )
             try:
-                out = _compiled(
+                return _compiled(
                     move.move_hand_packed, *pack(careful), q0, h0, h1, _NO_KEYS, False,
                     self._solves,
                 )  # fmt: skip
@@ -258,37 +269,25 @@ class Simulator:
                     f"move failed ({first}) and again on the reference path with smaller "
                     f"increments ({second})"
                 ) from second
-        q, h, s_reached, s_end, blocked, jammed, log, untouched, rest = out
-        if log:
-            events.extend(_events(log))
-        # The hand is blocked by the support only if it got there (a jam may stop it first).
-        if blocked and not (jammed and s_reached < s_end):
-            events.append(Event("hand_blocked", s_end))
-        else:
-            blocked = False
-        if untouched:  # the object and its contacts are as they were
-            return self._new_state(q, h, state.contacts, known, events, jammed, blocked)
-        return self._state(q, h, rest, events, jammed, blocked)
 
     # ------------------------------------------------------------------ output
     def _make_state(self, q: np.ndarray, h: np.ndarray, events: list[Event]) -> State:
-        return self._state(q, h, move.at_rest(self.model, q, h), events)
+        return self._state(q, h, *move.at_rest(self.model, q, h), events)
 
-    def _state(self, q, h, rest, events, jammed=False, blocked=False) -> State:
+    def _state(self, q, h, keys, rows, events, jammed=False, blocked=False) -> State:
         """A :class:`State` from the compiled :func:`grasp_env.sim.move.at_rest` output."""
-        keys, P, N, gaps, forces = rest
         contacts = tuple(
             ct.Contact(
                 body=geo.BODY_NAMES[key[0]],
                 kind=ct.KIND_NAMES[key[1]],
-                point=P[i],
-                normal=N[i],
-                force=float(forces[i]),
+                point=row[move.ROW_POINT],
+                normal=row[move.ROW_NORMAL],
+                force=float(row[move.ROW_FORCE]),
                 object_feature=key[2],
                 hand_feature=key[3],
-                gap=float(gaps[i]),
+                gap=float(row[move.ROW_GAP]),
             )
-            for i, key in enumerate(keys.tolist())
+            for key, row in zip(keys.tolist(), rows, strict=True)
         )
         return self._new_state(q, h, contacts, keys, events, jammed, blocked)
 
@@ -321,14 +320,16 @@ def _events(log: list) -> list[Event]:
     ]
 
 
-def _finite_vector(value, size: int, name: str) -> np.ndarray:
-    """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``."""
+def _finite_floats(value, size: int, name: str) -> tuple | list:
+    """``value`` as ``size`` finite Python floats, or ``ValueError`` naming ``name``."""
     if type(value) is tuple and len(value) == size and all(type(x) is float for x in value):
         if all(map(math.isfinite, value)):  # the common case: a tuple of Python floats
-            return np.array(value)
-    elif type(value) is np.ndarray and value.dtype.kind == "f" and value.shape == (size,):
-        if np.abs(value).max() < math.inf:  # NaN compares False
-            return value.astype(float)
+            return value
+    return _finite_vector(value, size, name).tolist()
+
+
+def _finite_vector(value, size: int, name: str) -> np.ndarray:
+    """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``."""
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):

@@ -58,21 +58,20 @@ def test_moves_that_leave_the_object_alone_skip_the_loop_exactly() -> None:
     skipped = 0
     for _ in range(200):
         h1 = start.hand + rng.uniform(-1, 1, 5) * np.array([0.02, 0.02, 0.05, 0.3, 0.3])
-        fast = move.move_hand(
+        fast, _, _, _ = move.move_hand(
             sim.model, start.object_pose, start.hand, h1, known, True, sim._solves
         )
-        loop = move.move_hand(
+        loop, _, keys, rows = move.move_hand(
             sim.model, start.object_pose, start.hand, h1, known, False, sim._solves
         )
-        assert not loop[7]
-        np.testing.assert_array_equal(fast[0], loop[0])
-        np.testing.assert_array_equal(fast[1], loop[1])
-        if fast[7]:
+        assert not loop[move.OUT_UNTOUCHED]
+        np.testing.assert_array_equal(fast[move.OUT_Q], loop[move.OUT_Q])
+        np.testing.assert_array_equal(fast[move.OUT_H], loop[move.OUT_H])
+        if fast[move.OUT_UNTOUCHED]:
             skipped += 1
-            keys, _, _, gaps, forces = loop[8]
             np.testing.assert_array_equal(keys, known)
-            np.testing.assert_array_equal(forces, [c.force for c in start.contacts])
-            np.testing.assert_array_equal(gaps, [c.gap for c in start.contacts])
+            np.testing.assert_array_equal(rows[:, move.ROW_FORCE], [c.force for c in start.contacts])
+            np.testing.assert_array_equal(rows[:, move.ROW_GAP], [c.gap for c in start.contacts])
     assert skipped > 50, skipped
 
 

@@ -325,7 +325,7 @@ class FrictionlessGraspEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (5 if self.palm_control else 2,), np.float32)
         low, high = _observation_bounds(self.max_vertices)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
-        self._obs_low, self._obs_high = low.astype(float), high.astype(float)
+        self._obs_low, self._obs_high = low, high
 
         self._renderer = None
         self._sim: Simulator | None = None
@@ -440,9 +440,9 @@ class FrictionlessGraspEnv(gym.Env):
             )
         return h
 
-    def _check_action(self, action: Any) -> np.ndarray:
-        """The action as floats clipped into [-1, 1]; refused (``ValueError``) unless it is
-        finite real numbers of the action space's shape."""
+    def _check_action(self, action: Any) -> list[float]:
+        """The action as Python floats clipped into [-1, 1]; refused (``ValueError``) unless it
+        is finite real numbers of the action space's shape."""
         size = self.action_space.shape[0]
         if type(action) is np.ndarray and action.dtype.kind == "f" and action.shape == (size,):
             values = action.tolist()  # the common case, checked as _vector would
@@ -450,7 +450,7 @@ class FrictionlessGraspEnv(gym.Env):
                 raise ValueError(f"action must be finite, got {_short(action)}")
         else:
             values = _vector(action, "action", size).tolist()
-        return np.array([min(max(x, -1.0), 1.0) for x in values])
+        return [min(max(x, -1.0), 1.0) for x in values]
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -551,11 +551,7 @@ class FrictionlessGraspEnv(gym.Env):
         state = self._state
         self._steps += 1
         try:
-            new = self._simulate(state, a)
-            if not all(map(math.isfinite, new.object_pose.tolist() + new.hand.tolist())):
-                raise SimulationError(
-                    f"non-finite state: object {new.object_pose}, hand {new.hand}"
-                )
+            new = self._simulate(state, a)  # finite, or a SimulationError
         except (SimulationError, SolverError) as exc:
             reward_info = dict.fromkeys(_REWARD_KEYS, 0.0)
             reward_info["reward_lift"] = -self._phi  # Phi = 0 at a terminal state
@@ -564,7 +560,7 @@ class FrictionlessGraspEnv(gym.Env):
             info["sim_error"] = f"{type(exc).__name__}: {exc}"
             return self._get_obs(), float(reward_info["reward_lift"]), True, False, info
 
-        analysis = self._analyse(new)
+        analysis = self._analyse(new, self._analysis if new.contacts is state.contacts else None)
         dropped = (analysis["on_support"] and self._left_support) or analysis["out_of_reach"]
         self._left_support |= not analysis["on_support"]
         self._state, self._analysis = new, analysis
@@ -606,9 +602,9 @@ class FrictionlessGraspEnv(gym.Env):
             raise TypeError(f"state must be a grasp_env.State, got {_short(state)}")
         return self._simulate(state, a)
 
-    def _simulate(self, state: State, a: np.ndarray) -> State:
+    def _simulate(self, state: State, a: list[float]) -> State:
         """:meth:`simulate_action` of a checked action (floats in [-1, 1])."""
-        h, a = state.hand.tolist(), a.tolist()
+        h = state.hand.tolist()
         step = self.max_finger_step
         fingers = (h[3] + step * a[0], h[4] - step * a[1])  # both close for a > 0
         palm = None
@@ -626,28 +622,31 @@ class FrictionlessGraspEnv(gym.Env):
         step = [float(m) * u for m, u in zip(self.max_palm_step, (w, w, 1.0), strict=True)]
         return low, high, step
 
-    def _analyse(self, state: State) -> dict[str, Any]:
-        """Form closure (always), y* (only when needed) and where the object is."""
-        on_support = state.on_support
-        # Planar form closure needs at least four frictionless contacts: skip the LP below.
-        closure = len(state.contacts) >= 4 and is_form_closure(state)
-        grip = grip_objective(state) if closure or self.always_compute_grip else math.nan
-        p_P = _in_palm_frame(state)
-        reach = REACH * state.scene.palm.width
-        return {
-            "on_support": on_support,
-            "form_closure": closure,
-            "grip": grip,
-            "success": closure and not on_support,
-            "out_of_reach": max(abs(p_P[0]), abs(p_P[1])) > reach,
-            "in_palm_frame": p_P,
-        }
+    def _analyse(self, state: State, same_contacts: dict | None = None) -> dict[str, Any]:
+        """Form closure (always), y* (only when needed) and where the object is.
+
+        ``same_contacts``: the analysis of a state with the same object pose and contacts
+        (the simulator returns the very same contacts when the hand moved clear of an object
+        at rest), whose contact-dependent entries are kept instead of computed again.
+        """
+        if same_contacts is None:
+            on_support = state.on_support
+            # Planar form closure needs at least four frictionless contacts: skip the LP below.
+            closure = len(state.contacts) >= 4 and is_form_closure(state)
+            grip = grip_objective(state) if closure or self.always_compute_grip else math.nan
+            an = {"on_support": on_support, "form_closure": closure, "grip": grip,
+                  "success": closure and not on_support, "contact_obs": None}  # fmt: skip
+        else:
+            an = same_contacts.copy()
+        p_P = an["in_palm_frame"] = _in_palm_frame(state)
+        an["out_of_reach"] = max(abs(p_P[0]), abs(p_P[1])) > REACH * state.scene.palm.width
+        return an
 
     def _potential(self, state: State) -> float:
         height = (state.object_pose[1] - self._y0) / state.scene.palm.width
         return self.reward_weights["lift"] * float(height)
 
-    def _get_rew(self, state: State, a: np.ndarray, dropped: bool) -> tuple[float, dict]:
+    def _get_rew(self, state: State, a: list[float], dropped: bool) -> tuple[float, dict]:
         weights, an = self.reward_weights, self._analysis
         bonus = 0.0
         if an["success"] and not self._success_rewarded:
@@ -661,7 +660,7 @@ class FrictionlessGraspEnv(gym.Env):
         self._phi = phi
         drop = -weights["drop"] if dropped else 0.0
         effort = 0.0  # sum of squares, in index order (as numpy sums so few terms)
-        for x in a.tolist():
+        for x in a:
             effort += x * x
         ctrl = -weights["ctrl"] * effort
         terms = map(float, (bonus, grip, lift, drop, ctrl))
@@ -684,29 +683,31 @@ class FrictionlessGraspEnv(gym.Env):
             (x_o - x0) / w, y_o / w, math.sin(th_o), math.cos(th_o),
             p_P[0] / w, p_P[1] / w, math.sin(p_P[2]), math.cos(p_P[2]),
         )  # fmt: skip
-        contacts = [0.0] * (2 * len(BODIES))
-        for c in state.contacts:
-            k = _BODY_INDEX[c.body]
-            contacts[k] += 1.0
-            contacts[k + 1] += c.force / weight
-        contacts += (
-            float(an["form_closure"]),
-            grip if math.isfinite(grip) else GRIP_MAX,
-            (y_o - self._y0) / w,
-        )
-        obs[self._contacts_at :] = contacts
-        np.maximum(obs, self._obs_low, out=self._obs_clipped)
-        return np.minimum(self._obs_clipped, self._obs_high, out=self._obs_clipped).astype(
-            np.float32
-        )
+        if an["contact_obs"] is None:  # new contacts (else the buffer holds them already)
+            contacts = [0.0] * (2 * len(BODIES))
+            for c in state.contacts:
+                k = _BODY_INDEX[c.body]
+                contacts[k] += 1.0
+                contacts[k + 1] += c.force / weight
+            contacts += (
+                float(an["form_closure"]),
+                grip if math.isfinite(grip) else GRIP_MAX,
+                (y_o - self._y0) / w,
+            )
+            obs[self._contacts_at :] = an["contact_obs"] = contacts
+        elif self._obs_contacts is not an["contact_obs"]:
+            obs[self._contacts_at :] = an["contact_obs"]
+        self._obs_contacts = an["contact_obs"]
+        clipped = np.maximum(obs, self._obs_low)
+        return np.minimum(clipped, self._obs_high, out=clipped)
 
     def _object_obs(self, scene: Scene) -> None:
         """The observation's per-episode part: the object's vertices (body frame, in palm
         widths) padded to ``max_vertices``, and their mask."""
         n = self.max_vertices
         v = scene.object.vertices_B / scene.palm.width
-        obs = self._obs_buffer = np.zeros(len(self._obs_low))
-        self._obs_clipped = np.empty_like(obs)
+        obs = self._obs_buffer = np.zeros(len(self._obs_low), dtype=np.float32)
+        self._obs_contacts = None  # the contact part the buffer holds (_get_obs)
         obs[13 : 13 + 2 * len(v)] = v.ravel()
         obs[13 + 2 * n : 13 + 2 * n + len(v)] = 1.0
         self._contacts_at = 13 + 3 * n

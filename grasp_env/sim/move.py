@@ -99,33 +99,54 @@ def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known
     return True
 
 
+#: Layout of the float array :func:`move_hand` returns: the object pose, the hand, the ``s``
+#: reached, the support limit ``s_end``, and the flags ``blocked``, ``jammed`` and
+#: ``untouched`` as 0.0 or 1.0 (one array crosses back into Python at once).
+OUT_Q, OUT_H = slice(0, 3), slice(3, 8)
+OUT_S, OUT_S_END, OUT_BLOCKED, OUT_JAMMED, OUT_UNTOUCHED = 8, 9, 10, 11, 12
+OUT_SIZE = 13
+#: Columns of the contact rows :func:`at_rest` returns, one row per contact.
+ROW_POINT, ROW_NORMAL, ROW_GAP, ROW_FORCE = slice(0, 2), slice(2, 4), 4, 5
+
+
 @njit(cache=CACHE)
 def move_hand(
     model, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray, use_known: bool,
     solves: np.ndarray,
 ):  # fmt: skip
     """A straight-line hand move from ``h0`` toward ``h1``, stopped short where a hand vertex
-    would enter the support, and the state it ends in, in one call: ``(q, h, s, s_end,
-    blocked, jammed, events, untouched, rest)``, with the support limit ``s_end`` (``blocked``
-    when it cuts the move short), the ``s`` reached and :func:`at_rest` of the final state.
+    would enter the support, and the state it ends in, in one call: ``(out, events, keys,
+    rows)``, with ``out`` laid out as ``OUT_*`` says (the support limit ``s_end``, with
+    ``blocked`` when it cuts the move short, and the ``s`` reached) and ``(keys, rows)``
+    :func:`at_rest` of the final state.
 
     ``untouched``: the object rested on the support alone (``known``, when ``use_known``) and
     no hand body came near it (:func:`hand_stays_clear`), so nothing about it changed; the
-    move loop and ``rest`` (then empty) are skipped. A non-finite end state raises
-    ``SimulationError``.
+    move loop and ``at_rest`` are skipped (its keys and rows are then empty). A non-finite end
+    state raises ``SimulationError``.
     """
     s_end, blocked = support_limit(model, h0, h1)
     dh = h1 - h0
     if use_known and hand_stays_clear(model, q, h0, s_end * dh, known):
-        h = h0 + s_end * dh
-        nothing = np.zeros((0, 2))
-        rest = (contact_sets.empty(), nothing, nothing, np.zeros(0), np.zeros(0))
-        return q.copy(), h, s_end, s_end, blocked, False, new_log(), True, rest
+        out = _out(q, h0 + s_end * dh, s_end, s_end, blocked, False, True)
+        return out, new_log(), contact_sets.empty(), np.zeros((0, 6))
     q, s, jammed, events = move(model, q, h0, h1, s_end, known, use_known, solves)
     h = h0 + s * dh
     if not (np.isfinite(q).all() and np.isfinite(h).all()):
         raise SimulationError("the move ended in a non-finite state")
-    return q, h, s, s_end, blocked, jammed, events, False, at_rest(model, q, h)
+    keys, rows = at_rest(model, q, h)
+    return _out(q, h, s, s_end, blocked, jammed, False), events, keys, rows
+
+
+@njit(cache=CACHE)
+def _out(q, h, s, s_end, blocked, jammed, untouched) -> np.ndarray:
+    """The ``OUT_*`` array of a move's end."""
+    out = np.empty(OUT_SIZE)
+    out[OUT_Q] = q
+    out[OUT_H] = h
+    out[OUT_S], out[OUT_S_END] = s, s_end
+    out[OUT_BLOCKED], out[OUT_JAMMED], out[OUT_UNTOUCHED] = blocked, jammed, untouched
+    return out
 
 
 @njit(cache=CACHE)
@@ -312,12 +333,18 @@ def _advance(model, q, h0, dh, s_end, known, use_known, events, solves):
 
 @njit(cache=CACHE)
 def at_rest(model, q: np.ndarray, h: np.ndarray):
-    """The contacts of a state at rest: ``(keys, points, normals, gaps, forces)`` with the
-    least total force in equilibrium (:func:`grasp_env.sim.equilibrium.rest_forces`)."""
+    """The contacts of a state at rest: ``(keys, rows)``, a row per contact with its point,
+    normal, gap and force (``ROW_*``), the forces the least total force in equilibrium
+    (:func:`grasp_env.sim.equilibrium.rest_forces`)."""
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
-    P, N, F, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
-    return keys, P, N, F, rest_forces(model, world, q[:2], keys)
+    P, N, gaps, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
+    rows = np.empty((keys.shape[0], 6))
+    rows[:, ROW_POINT] = P
+    rows[:, ROW_NORMAL] = N
+    rows[:, ROW_GAP] = gaps
+    rows[:, ROW_FORCE] = rest_forces(model, world, q[:2], keys)
+    return keys, rows
 
 
 @njit(cache=CACHE)
