@@ -70,7 +70,9 @@ def test_moves_that_leave_the_object_alone_skip_the_loop_exactly() -> None:
         if fast[move.OUT_UNTOUCHED]:
             skipped += 1
             np.testing.assert_array_equal(keys, known)
-            np.testing.assert_array_equal(rows[:, move.ROW_FORCE], [c.force for c in start.contacts])
+            np.testing.assert_array_equal(
+                rows[:, move.ROW_FORCE], [c.force for c in start.contacts]
+            )
             np.testing.assert_array_equal(rows[:, move.ROW_GAP], [c.gap for c in start.contacts])
     assert skipped > 50, skipped
 
