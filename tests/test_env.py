@@ -623,6 +623,56 @@ def test_observation_layout():
     assert np.array_equal(env.observation_space.high, high)
 
 
+@pytest.mark.parametrize(
+    "kwargs",
+    [{}, {"palm_control": True, "shape_randomizer": True}, {"start": "preliftoff"}],
+    ids=["default", "palm-randomizer", "preliftoff"],
+)
+def test_observation_follows_each_step_state(kwargs):
+    """Every observation's hand, object and contact entries, recomputed here from the step's
+    info (contacts counted and their forces summed per body), also on steps where the hand
+    moves clear of the object and the env keeps the contact part it had."""
+    env = FrictionlessGraspEnv(**kwargs)
+    n = env.max_vertices
+    rng = np.random.default_rng(5)
+    obs, info = env.reset(seed=3)
+    y0, kept = info["object_pose"][1], 0
+    for _ in range(150):
+        obs, _, terminated, truncated, info = env.step(
+            rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        )
+        scene = env.scene
+        w, weight, x0 = scene.palm.width, scene.object_weight, scene.object.start_pose[0]
+        x_p, y_p, th_p = info["palm_pose"]
+        x_o, y_o, th_o = info["object_pose"]
+        c, s = math.cos(th_p), math.sin(th_p)
+        dx, dy = x_o - x_p, y_o - y_p
+        expected = [(x_p - x0) / w, y_p / w, th_p, *info["finger_angles"], (x_o - x0) / w,
+                    y_o / w, math.sin(th_o), math.cos(th_o), (c * dx + s * dy) / w,
+                    (-s * dx + c * dy) / w, math.sin(th_o - th_p), math.cos(th_o - th_p)]  # fmt: skip
+        per_body = np.zeros(2 * len(geo.BODY_NAMES))
+        for contact in info["contacts"]:
+            k = 2 * geo.BODY_NAMES.index(contact["body"])
+            per_body[k] += 1.0
+            per_body[k + 1] += contact["force"] / weight
+        grip = info["grip_force"] / weight if info["form_closure"] else 10.0
+        expected += [*per_body, float(info["form_closure"]), grip, (y_o - y0) / w]
+        tail = np.concatenate([obs[:13], obs[13 + 3 * n :]])
+        low, high = _observation_bounds(n)
+        bounds = (
+            np.concatenate([low[:13], low[13 + 3 * n :]]),
+            np.concatenate([high[:13], high[13 + 3 * n :]]),
+        )
+        np.testing.assert_allclose(
+            tail, np.clip(expected, *bounds).astype(np.float32), rtol=1e-6, atol=1e-6
+        )
+        kept += info["events"] == [] and all(c["body"] == "support" for c in info["contacts"])
+        if terminated or truncated:
+            obs, info = env.reset()
+            y0 = info["object_pose"][1]
+    assert kept > 10, kept
+
+
 def test_form_closure_lift_then_drop_terminates_with_penalty():
     env = FrictionlessGraspEnv(start="preliftoff", reward_ctrl_weight=0.01)
     env.reset(seed=0)
