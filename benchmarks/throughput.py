@@ -2,8 +2,8 @@
 
 One process, ``render_mode=None``. Random actions are drawn in bulk from a seeded
 ``numpy.random.Generator`` (``Box.sample`` alone costs about 13 us). Each round runs every
-env for ``budget`` seconds of stepping (resets included, env construction excluded), in a
-rotated order so that load changes on a shared machine spread over all envs. Reported: the
+env for ``budget`` seconds of stepping (resets included; env construction and
+:data:`WARMUP_STEPS` first steps excluded), in a rotated order so that load changes on a shared machine spread over all envs. Reported: the
 median steps/s over rounds, the median over rounds of the per-round ratio to each baseline,
 and one line per target (:data:`TARGETS`) with its ratio. The scripted policy
 (``agents.scripted.ScriptedPolicy``) runs when it exists.
@@ -44,6 +44,7 @@ TARGETS = (
     ("target", {"shape_randomizer": True, "palm_control": True}, "LunarLander-v3", 1.0),
 )
 ACTION_BLOCK = 4096  #: random actions drawn per call to the generator
+WARMUP_STEPS = 20  #: untimed random steps of each env before its first round
 
 
 class RandomActions:
@@ -85,6 +86,12 @@ class Runner:
     policy_seconds: float = 0.0
 
     def __post_init__(self) -> None:
+        # A few untimed steps first: a process's first step loads the compiled simulator
+        # from its cache (start-up, which memory.py measures), not a cost per step.
+        self.env.reset(seed=0)
+        for _ in range(WARMUP_STEPS):
+            if any(self.env.step(self.env.action_space.sample())[2:4]):
+                self.env.reset()
         self.obs, info = self.env.reset(seed=0)
         self.policy.reset(self.obs, info)
 

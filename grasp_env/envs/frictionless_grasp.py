@@ -560,7 +560,7 @@ class FrictionlessGraspEnv(gym.Env):
             info["sim_error"] = f"{type(exc).__name__}: {exc}"
             return self._get_obs(), float(reward_info["reward_lift"]), True, False, info
 
-        analysis = self._analyse(new, self._analysis if new.contacts is state.contacts else None)
+        analysis = self._analyse(new, self._analysis if _same_contacts(new, state) else None)
         dropped = (analysis["on_support"] and self._left_support) or analysis["out_of_reach"]
         self._left_support |= not analysis["on_support"]
         self._state, self._analysis = new, analysis
@@ -626,8 +626,8 @@ class FrictionlessGraspEnv(gym.Env):
         """Form closure (always), y* (only when needed) and where the object is.
 
         ``same_contacts``: the analysis of a state with the same object pose and contacts
-        (the simulator returns the very same contacts when the hand moved clear of an object
-        at rest), whose contact-dependent entries are kept instead of computed again.
+        (:func:`_same_contacts`), whose contact-dependent entries are kept instead of
+        computed again.
         """
         if same_contacts is None:
             on_support = state.on_support
@@ -822,6 +822,18 @@ def _in_palm_frame(state: State) -> tuple[float, float, float]:
     dx, dy = x_o - x_p, y_o - y_p
     c, s = math.cos(th_p), math.sin(th_p)
     return (c * dx + s * dy, -s * dx + c * dy, th_o - th_p)
+
+
+def _same_contacts(new: State, old: State) -> bool:
+    """Whether ``new`` has the contacts of ``old``, object pose included: the simulator
+    handed them on (the hand moved clear of an object at rest), or the object and the hand
+    are where they were (the contacts of a state at rest follow from the two alone)."""
+    if new.contacts is old.contacts:
+        return True
+    return (
+        new.object_pose.tolist() == old.object_pose.tolist()
+        and new.hand.tolist() == old.hand.tolist()
+    )
 
 
 def _placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:
