@@ -1,23 +1,12 @@
 """A whole hand move, compiled: the paper's active-set method (section 3.1) from ``s = 0`` to
-the end of a straight-line hand path ``h(s) = h0 + s (h1 - h0)``.
+the end of a straight-line hand path ``h(s) = h0 + s (h1 - h0)``, in one call from Python
+(:func:`move_hand_packed`).
 
-Each increment runs
-
-1. **plan**: the active set ``E`` and the least-motion object twist ``v``
-   (:func:`grasp_env.sim.motion.plan`), or a jam, or a fall;
-2. **solve**: the object pose at the step's end on ``E`` (:func:`grasp_env.sim.step.try_step`);
-3. **check**: no penetration, overlap, contact past an edge's end or negative force;
-4. **locate**: otherwise the first event, by bisection to ``tol``
-   (:func:`grasp_env.sim.step.locate`);
-5. **update**: the move goes on from the step's end or the event.
-
-The move state carried from one increment to the next is: the pose ``q`` and path
-parameter ``s``; a plan kept for the next increment (``carry``: ``E`` fixes the pose and
-holds it, so it stays valid; ``override``: a plan with a touching contact forced in or a lost
-one released); and what is known about the current point, cleared whenever ``s`` moves on:
-contacts ``banned`` from the active set (events that recur at once), contacts ``forced`` in,
-and the plan dropped for a lost contact (``losing``). Events that recur within a hair of
-each other more than :data:`CHATTER` times are treated as happening here (chatter).
+A move is cut short where a hand vertex would enter the support
+(:func:`grasp_env.sim.hand.support_limit`), skipped where the hand stays clear of an object
+resting on the support (:func:`hand_stays_clear`), followed increment by increment
+(:func:`grasp_env.sim.increments.advance`), and ends with the contacts and forces of the
+state it reaches (:func:`at_rest`).
 """
 
 from __future__ import annotations
@@ -25,33 +14,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from grasp_env.errors import SimulationError, WorkLimitError
-from grasp_env.sim import CACHE, contact_sets, motion
+from grasp_env.errors import SimulationError
+from grasp_env.sim import CACHE, contact_sets
 from grasp_env.sim.clearance import separation
-from grasp_env.sim.equilibrium import determined, held, rest_forces
-from grasp_env.sim.events import (
-    EDGE_TO_TIP,
-    JAM,
-    LOST_CONTACT,
-    NEW_CONTACT,
-    NO_CHECK,
-    TIP_TO_EDGE,
-)  # fmt: skip
-from grasp_env.sim.fall import fall, fall_if_unheld, held_here, nudge_and_fall, touching
+from grasp_env.sim.equilibrium import rest_forces
+from grasp_env.sim.events import NO_CHECK
+from grasp_env.sim.fall import fall, held_here, touching
 from grasp_env.sim.hand import support_limit, vertex_speeds
+from grasp_env.sim.increments import advance
 from grasp_env.sim.model import unpack
 from grasp_env.sim.placement import contact_rows, place
-from grasp_env.sim.step import locate, sweep_limit, try_step
-
-#: Chatter guard: an event (a contact lost, a jam) located more than CHATTER times in a row,
-#: each time less than CHATTER_DS of the move after the last, is treated as happening at the
-#: current point (a lost contact is dropped from the active set, a jam stops the hand)
-#: instead of creeping on.
-CHATTER = 3
-CHATTER_DS = 1e-4
-#: A move whose path parameter stays within CHATTER_DS for more than STALL increments (events
-#: cycling at one point, e.g. a contact lost and found again and again) cannot be followed.
-STALL = 200
 
 
 @njit(cache=CACHE)
@@ -69,16 +41,6 @@ def settle(model, q: np.ndarray, h: np.ndarray, solves: np.ndarray):
     if not held_here(model, q, h, model.ftol):
         q = fall(model, q, h, 0.0, events, solves)[0]
     return q, events
-
-
-@njit(cache=CACHE)
-def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
-    """The hand stops at a jam; the object must be held there (at a fold by forces without
-    bound). A jam whose object is neither held nor able to fall is a failure, not a state."""
-    world = place(model, q, h)
-    keys = touching(model, world, contact_sets.empty())
-    if not held(model, world, q[:2], keys, model.ftol, np.inf):
-        raise SimulationError("jam at s =", s, "with the object neither held nor falling")
 
 
 @njit(cache=CACHE)
@@ -160,175 +122,7 @@ def move(
     if not np.any(dh) or s_end <= 0.0:
         q, events = settle(model, q, h0, solves)
         return q, 0.0, False, events
-    return _advance(model, q, h0, dh, s_end, known, use_known, new_log(), solves)
-
-
-@njit(cache=CACHE)
-def _advance(model, q, h0, dh, s_end, known, use_known, events, solves):
-    """The increment loop of :func:`move` (see the module docstring)."""
-    none = contact_sets.empty()
-    zero = np.zeros(3)
-    s = 0.0
-    # Events closer than tol along the hand's path count as here (no progress).
-    reach = np.abs(dh[:2]).sum() + np.abs(dh[2:]).sum() * 2.0 * model.half
-    s_eps = max(1e-13, model.tol / reach)
-    keys = known
-    stuck_fall = False
-    has_carry, carry_E, carry_v = False, none, zero
-    has_override, override_E, override_v = False, none, zero
-    # what is known about the current point, cleared when s moves on
-    banned, forced = none, none
-    has_losing, losing_E, losing_v = False, none, zero
-    run_kind, run_keys, run_count = NO_CHECK, none, 0  # the event located last (chatter)
-    mark_s, mark_it = 0.0, 0  # where s last moved on by more than CHATTER_DS
-    for it in range(model.max_iterations):
-        if s > mark_s + CHATTER_DS:
-            mark_s, mark_it = s, it
-        elif it - mark_it > STALL:
-            raise WorkLimitError("no progress after", STALL, "increments near s =", s)
-        h = h0 + s * dh
-        # 1. plan
-        carried, overridden = has_carry, has_override
-        if carried:
-            outcome, E, v = motion.MOVE, carry_E, carry_v
-            has_carry = False
-        elif overridden:
-            outcome, E, v = motion.MOVE, override_E, override_v
-            has_override = False
-        else:
-            world = place(model, q, h)
-            if use_known:
-                use_known = False
-            else:
-                keys = touching(model, world, banned)
-            outcome, E, v = motion.plan(model, world, q, h, dh, keys, not stuck_fall)
-        stuck_fall = False
-        if outcome == motion.JAM:
-            if has_losing:
-                # Contacts dropped for a negative force leave the object unheld just ahead:
-                # past the boundary of equilibrium it falls.
-                s_new, q_new, found = nudge_and_fall(
-                    model, q, s, losing_E, losing_v, h0, dh, s_end, events, solves
-                )
-                if found:
-                    s, q = s_new, q_new
-                    banned, forced, has_losing = none, none, False
-                    continue
-            q_new, fell = fall_if_unheld(model, q, h, s, events, solves)
-            if fell:
-                q = q_new
-                continue
-            events.append((JAM, s, keys))
-            stop_at_jam(model, q, h, s)
-            return q, s, True, events
-        if outcome == motion.FALL:
-            q_new, moved = fall(model, q, h, s, events, solves)
-            stuck_fall = not moved  # no way down after all: plan without falling
-            if stuck_fall:
-                events.pop()  # the fall that did not happen
-                events.pop()
-            q = q_new
-            continue
-        if s >= s_end - 1e-15:
-            return q, s_end, False, events
-        # 2-3. solve and check
-        rest = sweep_limit(model, q, h, dh, v, E, s_end - s)
-        ds = min(model.max_step, rest)
-        tried = False
-        if ds < rest and (carried or determined(model, place(model, q, h), q, E)):
-            # E fixes the pose as a function of s and holds it with positive forces: it stays
-            # the active set until an event and the pose needs no integration, so one step may
-            # go to the end of the move (the check locates any event in it).
-            ok, q_new, kind, key, value = try_step(model, q, s, rest, E, v, h0, dh, True, solves)
-            tried = ok or kind != JAM
-            if tried:
-                ds = rest
-        if not tried:
-            ok, q_new, kind, key, value = try_step(model, q, s, ds, E, v, h0, dh, False, solves)
-        if ok:
-            # 5. update: the step is accepted
-            h_new = h0 + (s + ds) * dh
-            if determined(model, place(model, q_new, h_new), q_new, E):
-                has_carry, carry_E, carry_v = True, E, (q_new - q) / ds
-            q, s = q_new, s + ds
-            banned, forced, has_losing = none, none, False
-            continue
-        # 4. locate the first event
-        s_star, q_star, event, event_keys = locate(
-            model, q, s, s + ds, E, v, h0, dh, kind, key, value, solves
-        )
-        # Chatter: the same event again and again, each within a hair's breadth of the last
-        # (a contact whose force falls to zero again as soon as the re-planned active set
-        # takes it back; an infeasible LP just ahead at a wedge). Treat it as happening here.
-        near = s_star - s < CHATTER_DS
-        if near and event == run_kind and contact_sets.equal(event_keys, run_keys):
-            run_count += 1
-        else:
-            run_count = 1 if near else 0
-        run_kind, run_keys = event, event_keys
-        if s_star - s >= s_eps and run_count <= CHATTER:
-            # 5. update: the move goes on from the event
-            events.append((event, s_star, event_keys))
-            q, s = q_star, s_star
-            banned, forced, has_losing = none, none, False
-            continue
-        # The event sits right here.
-        has_key = event_keys.shape[0] > 0
-        key = event_keys[0] if has_key else contact_sets.NONE
-        if has_key and (event == EDGE_TO_TIP or event == TIP_TO_EDGE or event == LOST_CONTACT):
-            if contact_sets.index(banned, key) < 0:
-                # The offending contact cannot stay active here: plan without it.
-                banned = contact_sets.with_key(banned, key)
-                if event == LOST_CONTACT:
-                    # Its force reached zero: the others hold the object right there, so the
-                    # motion goes on with them (the old plan's velocity as Newton's
-                    # predictor); the old plan is kept in case releasing fails too.
-                    has_losing, losing_E, losing_v = True, E, v
-                    override_E = contact_sets.without(E, key)
-                    has_override, override_v = override_E.shape[0] > 0, v
-                continue
-        if overridden:
-            continue  # the forced plan could not go on: plan afresh
-        reverted = False
-        if event == NEW_CONTACT and has_key and contact_sets.index(E, key) < 0:
-            is_banned = contact_sets.index(banned, key) >= 0
-            if is_banned and has_losing:
-                # Keeping the contact makes its force negative, dropping it lets the object
-                # into it: the object sits at an equilibrium that the hand's motion destroys
-                # (a potential maximum along the other contacts' family).
-                E, v, reverted = losing_E, losing_v, True
-            elif not is_banned and contact_sets.index(forced, key) < 0:
-                # A touching contact the plan left open (zero force, not tight at the
-                # least-norm velocity) closes at once: the object held by the others is
-                # pushed into it, so it joins the active set. The plan's velocity keeps
-                # every touching contact closed (V v >= xi).
-                here = touching(model, place(model, q, h0 + s * dh), none)
-                if contact_sets.index(here, key) >= 0:
-                    forced = contact_sets.with_key(forced, key)
-                    has_override, override_E, override_v = True, contact_sets.with_key(E, key), v
-                    continue
-        if event == LOST_CONTACT or reverted:
-            # The object sits on the boundary of equilibrium: just ahead, no contact set
-            # holds it. Nudge the hand past the boundary and let the object fall.
-            s_new, q_new, found = nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves)
-            if found:
-                s, q = s_new, q_new
-                banned, forced, has_losing = none, none, False
-                continue
-        # Nothing consistent lies just ahead: the active contacts' equations fold (their
-        # normals turn concurrent and the forces needed grow without bound) or no contact can
-        # be released. The hand cannot move on: a jam -- unless the contacts left cannot hold
-        # the object, which then falls first.
-        h = h0 + s * dh
-        q_new, fell = fall_if_unheld(model, q, h, s, events, solves)
-        if fell:
-            q = q_new
-            banned, forced, has_losing = none, none, False
-            continue
-        events.append((JAM, s, E))
-        stop_at_jam(model, q, h, s)
-        return q, s, True, events
-    raise WorkLimitError("no progress after", model.max_iterations, "increments, at s =", s)
+    return advance(model, q, h0, dh, s_end, known, use_known, new_log(), solves)
 
 
 @njit(cache=CACHE)
