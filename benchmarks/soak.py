@@ -6,17 +6,10 @@ parallel edges, slivers, near-circles and a bulge on the resting edge mixed in:
 :func:`random_stress_scene`) in the hand set-up of the fig13 scene. Each worker process
 runs its share of the shapes; on each shape an env with palm control takes
 ``steps / shapes`` random actions (reset on termination), and after every step the returned
-``info`` is checked by :func:`check_state`, an independent re-computation of the
-state's invariants (it does not use :mod:`grasp_env.geometry`, :mod:`grasp_env.kinematics` or
-:mod:`grasp_env.contacts`):
-
-* no NaN or infinity in the observation, the poses or the contacts;
-* no penetration deeper than ``contact_tol`` between the object and the support, the palm or
-  a finger (separating-axis test), and no hand vertex below the support;
-* every contact force ``>= 0``; every listed contact has ``|gap| <= contact_tol`` and a normal
-  of an edge through its point; every touching vertex-body pair is listed;
-* the object's equilibrium residual ``|sum c_i n_i + m g| (+ moment / size)`` below
-  ``EQ_RTOL`` times its weight, and no admissible descent (the velocity LP's optimum is 0).
+``info`` is checked by :func:`grasp_env.testing.check_state`, an independent re-computation
+of the state's invariants (no penetration, contacts on both boundaries with ``|gap| <=
+contact_tol``, non-negative forces, every touching pair listed, equilibrium and no admissible
+descent), and the observation for NaN or infinity.
 
 Exceptions, ``info["sim_error"]`` terminations and invariant violations are counted, and the
 first few of each are written out with the seed and shape index that reproduce them.
@@ -45,12 +38,12 @@ import time
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linprog
+
+from grasp_env.testing import EQ_RTOL, check_state
 
 #: The committed results (``--out benchmarks/results/soak.md`` updates them) and the default
 #: output folder (the repository never overwrites shipped files unless asked).
@@ -60,10 +53,6 @@ OUT = Path(__file__).resolve().parents[1] / "runs" / "benchmarks"
 #: name: a checkpoint written with other shapes is never resumed.
 POPULATION = 2
 
-#: Equilibrium residual and descent-LP optimum allowed, as a fraction of the object's weight.
-EQ_RTOL = 1e-7
-#: Slack for floating-point rounding on top of ``contact_tol``, as a fraction of the palm width.
-ROUNDING = 1e-13
 #: Gap between the hanging longer finger's tip (or the object's top) and the palm height,
 #: in palm widths (the paper's "just high enough" set-up).
 CLEARANCE = 0.01
@@ -78,256 +67,6 @@ SCENE_KINDS = (*KINDS, "bulge_sunk")
 MAX_ASPECT = 30.0
 DENSITY_RANGE = (1e-3, 1e3)
 BULGE_RANGE = (1e-12, 1e-9)
-
-
-# ---------------------------------------------------------------------------------------
-# Independent geometry (docs/conventions.md, "Frames")
-# ---------------------------------------------------------------------------------------
-
-
-def rot(theta: float) -> np.ndarray:
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, -s], [s, c]])
-
-
-def cross(a: np.ndarray, b: np.ndarray) -> float:
-    return float(a[0] * b[1] - a[1] * b[0])
-
-
-def object_polygon_W(scene: Any, pose: np.ndarray) -> np.ndarray:
-    """Object vertices (n, 2) in the world: ``vertices_B`` turned by theta, then shifted."""
-    return scene.object.vertices_B @ rot(float(pose[2])).T + np.asarray(pose[:2], float)
-
-
-def hand_polygons_W(scene: Any, hand: np.ndarray) -> dict[str, np.ndarray]:
-    """World polygons (4, 2) of the palm and fingers for ``hand = (x, y, th, q1, q2)``, built
-    from docs/conventions.md: palm ``[-w/2, w/2] x [0, t]`` in P; finger i from its joint
-    ``J_i = (-+w/2, 0)`` to its tip ``J_i + L_i u_i``, thickness on the side away from the
-    inward normal (``u_1`` turned by +pi/2, ``u_2`` by -pi/2)."""
-    xp, yp, thp, q1, q2 = (float(v) for v in hand)
-    R, o = rot(thp), np.array([xp, yp])
-    w, tp = scene.palm.width, scene.palm.thickness
-    out = {"palm": np.array([[-w / 2, 0.0], [w / 2, 0.0], [w / 2, tp], [-w / 2, tp]]) @ R.T + o}
-    for i, (q, turn) in enumerate(((q1, 1.0), (q2, -1.0)), start=1):
-        f = scene.fingers[i - 1]
-        J = np.array([-w / 2 if i == 1 else w / 2, 0.0])
-        u = np.array([math.cos(q), math.sin(q)])
-        n = turn * np.array([-u[1], u[0]])
-        T = J + f.length * u
-        out[f"finger{i}"] = np.array([J, T, T - f.thickness * n, J - f.thickness * n]) @ R.T + o
-    return out
-
-
-def edges(poly: np.ndarray):
-    """``(a, b, outward unit normal)`` of every edge of a convex polygon of either orientation."""
-    area2 = sum(poly[k - 1, 0] * poly[k, 1] - poly[k, 0] * poly[k - 1, 1] for k in range(len(poly)))
-    sign = 1.0 if area2 > 0 else -1.0
-    for k in range(len(poly)):
-        a, b = poly[k], poly[(k + 1) % len(poly)]
-        d = b - a
-        yield a, b, sign * np.array([d[1], -d[0]]) / math.hypot(d[0], d[1])
-
-
-def sat_depth(a: np.ndarray, b: np.ndarray) -> float:
-    """Penetration depth of two convex polygons (separating axis theorem); < 0 when apart."""
-    depth = math.inf
-    for poly in (a, b):
-        for _, _, n in edges(poly):
-            pa, pb = a @ n, b @ n
-            depth = min(depth, min(pa.max(), pb.max()) - max(pa.min(), pb.min()))
-    return depth
-
-
-def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    d = b - a
-    t = min(1.0, max(0.0, float((p - a) @ d) / float(d @ d)))
-    return float(np.linalg.norm(p - a - t * d))
-
-
-def boundary_distances(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Distance of each point (m, 2) to the boundary of a polygon (its closed edge chain)."""
-    a = poly
-    d = np.roll(poly, -1, axis=0) - poly
-    rel = points[:, None, :] - a[None, :, :]  # (m, k, 2)
-    t = np.clip((rel * d[None]).sum(-1) / (d * d).sum(-1)[None], 0.0, 1.0)
-    return np.linalg.norm(rel - t[..., None] * d[None], axis=-1).min(axis=1)
-
-
-def boundary_distance(p: np.ndarray, poly: np.ndarray) -> float:
-    return float(boundary_distances(np.asarray(p, float)[None], poly)[0])
-
-
-# ---------------------------------------------------------------------------------------
-# Invariants of a state
-# ---------------------------------------------------------------------------------------
-
-
-@dataclass
-class Check:
-    """Figures of one state and the invariants it violates (empty: valid)."""
-
-    penetration: float = -math.inf  # deepest overlap / palm width
-    gap: float = 0.0  # worst |gap| of a listed contact / palm width
-    residual: float = 0.0  # equilibrium residual / weight
-    descent: float = 0.0  # velocity-LP optimum / weight (negative: an admissible descent)
-    min_force: float = math.inf
-    violations: list[str] = field(default_factory=list)
-
-
-def _get(c: Any, name: str) -> Any:
-    return c[name] if isinstance(c, dict) else getattr(c, name)
-
-
-def check_state(
-    scene: Any,
-    object_pose: np.ndarray,
-    hand: np.ndarray,
-    contacts: list,
-    tol: float,
-    *,
-    descent: bool = True,
-) -> Check:
-    """Check a state against geometry and mechanics computed here.
-
-    Args:
-        scene: the state's scene (its dimensions and the object's vertices in its frame).
-        object_pose: object pose ``(x, y, theta)``, shape (3,).
-        hand: hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,).
-        contacts: the listed contacts, :class:`grasp_env.Contact` or their ``as_dict()``.
-        tol: the contact tolerance as a length (``contact_tol * palm width``).
-        descent: also solve the velocity LP for an admissible descent.
-    """
-    out = Check()
-    bad = out.violations
-    w = scene.palm.width
-    W = scene.object_weight
-    limit = tol + ROUNDING * w
-    object_pose = np.asarray(object_pose, float)
-    hand = np.asarray(hand, float)
-    if not (np.all(np.isfinite(object_pose)) and np.all(np.isfinite(hand))):
-        bad.append(f"nan: object {object_pose.tolist()}, hand {hand.tolist()}")
-        return out
-    obj = object_polygon_W(scene, object_pose)
-    size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
-    com = object_pose[:2]
-    bodies = hand_polygons_W(scene, hand)
-
-    # Penetration.
-    depth = -float(obj[:, 1].min())
-    out.penetration = depth / w
-    if depth > limit:
-        bad.append(f"penetration: object {depth:.3e} below the support")
-    depths = {}
-    for name, poly in bodies.items():
-        d = depths[name] = sat_depth(obj, poly)
-        out.penetration = max(out.penetration, d / w)
-        if d > limit:
-            bad.append(f"penetration: object and {name} overlap by {d:.3e}")
-        low = float(poly[:, 1].min())
-        if low < -limit:
-            bad.append(f"penetration: {name} vertex at y = {low:.3e} below the support")
-
-    # Listed contacts.
-    P = np.zeros((len(contacts), 2))
-    N = np.zeros((len(contacts), 2))
-    C = np.zeros(len(contacts))
-    for i, c in enumerate(contacts):
-        body, kind = _get(c, "body"), _get(c, "kind")
-        p = np.asarray(_get(c, "point"), float)
-        n = np.asarray(_get(c, "normal"), float)
-        f = float(_get(c, "force"))
-        P[i], N[i], C[i] = p, n, f
-        where = f"contact {body}/{kind} at {p.tolist()}"
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(n)) and math.isfinite(f)):
-            bad.append(f"nan: {where}: normal {n.tolist()}, force {f}")
-            continue
-        out.min_force = min(out.min_force, f)
-        if f < 0.0:
-            bad.append(f"force: {where}: negative force {f:.3e}")
-        if abs(float(np.linalg.norm(n)) - 1.0) > 1e-9:
-            bad.append(f"contact: {where}: normal {n.tolist()} is not a unit vector")
-            continue
-        if boundary_distance(p, obj) > limit:
-            bad.append(f"contact: {where}: point off the object boundary")
-        if body == "support":
-            gap = float(p[1])
-            if np.abs(n - (0.0, 1.0)).max() > 1e-9:
-                bad.append(f"contact: {where}: support normal {n.tolist()}")
-        elif body in bodies:
-            poly = bodies[body]
-            if boundary_distance(p, poly) > limit:
-                bad.append(f"contact: {where}: point off the {body} boundary")
-            # edge kind: an object vertex on a hand edge whose outward normal is n;
-            # tip kind: a hand vertex on an object edge whose inward normal is n.
-            vert, feature, sign = (obj, poly, 1.0) if kind == "edge" else (poly, obj, -1.0)
-            v = vert[int(np.argmin(np.linalg.norm(vert - p, axis=1)))]
-            if np.linalg.norm(v - p) > limit:
-                bad.append(f"contact: {where}: point is not a vertex of the {kind} side")
-            gaps = [
-                float(m @ (v - a))
-                for a, b, m in edges(feature)
-                if np.abs(sign * m - n).max() < 1e-9 and segment_distance(p, a, b) <= limit
-            ]
-            if not gaps:
-                bad.append(f"contact: {where}: normal {n.tolist()} is not an edge's normal there")
-                continue
-            gap = min(gaps, key=abs)
-        else:
-            bad.append(f"contact: unknown body {body!r}")
-            continue
-        out.gap = max(out.gap, abs(gap) / w)
-        if abs(gap) > limit:
-            bad.append(f"contact: {where}: |gap| {abs(gap):.3e} > tol {tol:.1e}")
-
-    # Every touching vertex-body pair is listed (a contact of that body at that point).
-    def listed(body: str, p: np.ndarray) -> bool:
-        return any(
-            _get(c, "body") == body and np.abs(np.asarray(_get(c, "point")) - p).max() <= 4 * limit
-            for c in contacts
-        )
-
-    for p in obj:
-        if p[1] <= limit and not listed("support", p):
-            bad.append(f"unlisted: object vertex {p.tolist()} touches the support")
-    for name, poly in bodies.items():
-        if depths[name] < -2 * limit:
-            continue  # apart: nothing touches
-        for p, dist in zip(obj, boundary_distances(obj, poly), strict=True):
-            if dist <= limit and not listed(name, p):
-                bad.append(f"unlisted: object vertex {p.tolist()} touches the {name}")
-        for p, dist in zip(poly, boundary_distances(poly, obj), strict=True):
-            if dist <= limit and not listed(name, p):
-                bad.append(f"unlisted: {name} vertex {p.tolist()} touches the object")
-
-    # Equilibrium: sum c_i n_i + m g = 0 and the moment about the centre of mass.
-    if not bad or all(not v.startswith("nan") for v in bad):
-        force = C @ N + np.array([0.0, -W])
-        moment = sum(ci * cross(pi - com, ni) for ci, pi, ni in zip(C, P, N, strict=True))
-        out.residual = math.hypot(force[0], force[1], moment / size) / W
-        if not out.residual <= EQ_RTOL:
-            bad.append(f"equilibrium: residual {out.residual:.3e} x weight")
-        if descent and len(contacts):
-            # min W v_y s.t. V_ob v >= 0 (twists scaled by the object size, boxed): optimum 0.
-            V = np.column_stack(
-                [N, [cross(pi - com, ni) / size for pi, ni in zip(P, N, strict=True)]]
-            )
-            res = linprog(
-                [0.0, W, 0.0],
-                A_ub=-V,
-                b_ub=np.zeros(len(V)),
-                bounds=[(-1, 1)] * 3,
-                options={
-                    "primal_feasibility_tolerance": 1e-10,
-                    "dual_feasibility_tolerance": 1e-10,
-                },
-            )
-            if res.status == 0:
-                out.descent = float(res.fun) / W
-                if out.descent < -EQ_RTOL:
-                    bad.append(f"equilibrium: admissible descent W v_y = {out.descent:.3e} W")
-        elif descent:
-            bad.append("equilibrium: no contacts (nothing holds the object)")
-    return out
 
 
 # ---------------------------------------------------------------------------------------

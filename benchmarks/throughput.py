@@ -3,10 +3,11 @@
 One process, ``render_mode=None``. Random actions are drawn in bulk from a seeded
 ``numpy.random.Generator`` (``Box.sample`` alone costs about 13 us). Each round runs every
 env for ``budget`` seconds of stepping (resets included; env construction and
-:data:`WARMUP_STEPS` first steps excluded), in a rotated order so that load changes on a shared machine spread over all envs. Reported: the
-median steps/s over rounds, the median over rounds of the per-round ratio to each baseline,
-and one line per target (:data:`TARGETS`) with its ratio. The scripted policy
-(``agents.scripted.ScriptedPolicy``) runs when it exists.
+:data:`WARMUP_STEPS` first steps excluded), in a rotated order so that load changes on a
+shared machine spread over all envs. Reported: the median steps/s over rounds, the median
+over rounds of the per-round ratio to each baseline, and one line per target
+(:data:`TARGETS`) with its ratio. The scripted policy (``agents.scripted.ScriptedPolicy``)
+runs when it exists.
 
 Usage: ``python -m benchmarks.throughput [--quick]``
 """

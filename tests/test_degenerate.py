@@ -1,8 +1,9 @@
 """Degenerate contact geometry, one test per case, each against a closed form.
 
-Every returned state is also checked by :func:`soak.check_state` (independent geometry and
-mechanics). The expected poses, stopping points and contact sets come from the geometry of
-each set-up, worked out in the docstrings, never from an earlier run of the simulator.
+Every returned state is also checked by :func:`grasp_env.testing.check_state` (independent
+geometry and mechanics). The expected poses, stopping points and contact sets come from the
+geometry of each set-up, worked out in the docstrings, never from an earlier run of the
+simulator.
 """
 
 from __future__ import annotations
@@ -17,10 +18,9 @@ from scipy.optimize import minimize_scalar
 from scipy.spatial import ConvexHull
 
 import grasp_env
-from grasp_env import Simulator
+from grasp_env import Simulator, testing
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import soak
 
 HALF_PI = math.pi / 2
 TOL = 1e-9  # contact_tol x palm width (1)
@@ -50,7 +50,7 @@ def scene(
 
 
 def valid(state: grasp_env.State, where: str = "") -> None:
-    chk = soak.check_state(state.scene, state.object_pose, state.hand, state.contacts, TOL)
+    chk = testing.check_state(state.scene, state.object_pose, state.hand, state.contacts, TOL)
     assert not chk.violations, f"{where}: " + "; ".join(chk.violations)
 
 

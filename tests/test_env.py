@@ -647,9 +647,11 @@ def test_observation_follows_each_step_state(kwargs):
         x_o, y_o, th_o = info["object_pose"]
         c, s = math.cos(th_p), math.sin(th_p)
         dx, dy = x_o - x_p, y_o - y_p
-        expected = [(x_p - x0) / w, y_p / w, th_p, *info["finger_angles"], (x_o - x0) / w,
-                    y_o / w, math.sin(th_o), math.cos(th_o), (c * dx + s * dy) / w,
-                    (-s * dx + c * dy) / w, math.sin(th_o - th_p), math.cos(th_o - th_p)]  # fmt: skip
+        expected = [
+            (x_p - x0) / w, y_p / w, th_p, *info["finger_angles"], (x_o - x0) / w, y_o / w,
+            math.sin(th_o), math.cos(th_o), (c * dx + s * dy) / w, (-s * dx + c * dy) / w,
+            math.sin(th_o - th_p), math.cos(th_o - th_p),
+        ]  # fmt: skip
         per_body = np.zeros(2 * len(geo.BODY_NAMES))
         for contact in info["contacts"]:
             k = 2 * geo.BODY_NAMES.index(contact["body"])

@@ -16,7 +16,7 @@ transformation, to within the contact tolerance:
   mirrored and reversed (to stay counter-clockwise), contact normals mirrored;
 * **shift** by dx: every x plus dx, nothing else changes.
 
-Each run's states are also checked by :func:`soak.check_state`.
+Each run's states are also checked by :func:`grasp_env.testing.check_state`.
 """
 
 from __future__ import annotations
@@ -32,13 +32,12 @@ import pytest
 import yaml
 
 import grasp_env
-from grasp_env import Simulator
+from grasp_env import Simulator, testing
 from grasp_env import mechanics as mech
 from grasp_env import scene as scene_mod
 from grasp_env.errors import SceneError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import soak
 
 SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
 #: Pose agreement, as a fraction of the palm width (events are located to 1e-9 of it).
@@ -153,7 +152,7 @@ def run(d: dict, path: list[np.ndarray]) -> list[grasp_env.State]:
     for h in path:
         states.append(sim.move_hand(states[-1], palm=h[:3], fingers=h[3:]))
     for i, st in enumerate(states):
-        chk = soak.check_state(st.scene, st.object_pose, st.hand, st.contacts, tol)
+        chk = testing.check_state(st.scene, st.object_pose, st.hand, st.contacts, tol)
         assert not chk.violations, f"state {i}: {chk.violations}"
     return states
 
@@ -458,6 +457,6 @@ def test_transformations_are_involutions() -> None:
     # The mirrored scene's fingers are the mirror images: tip of new finger 1 = mirrored tip
     # of old finger 2.
     s0, s1 = grasp_env.load_scene(d), grasp_env.load_scene(mirror_scene(d))
-    t0 = soak.hand_polygons_W(s0, s0.initial_hand)["finger2"]
-    t1 = soak.hand_polygons_W(s1, s1.initial_hand)["finger1"]
+    t0 = testing.hand_polygons_W(s0, s0.initial_hand)["finger2"]
+    t1 = testing.hand_polygons_W(s1, s1.initial_hand)["finger1"]
     assert {tuple(p) for p in np.round(t0 * [-1, 1], 12)} == {tuple(p) for p in np.round(t1, 12)}

@@ -1,12 +1,13 @@
 """Tests of :mod:`grasp_env.simulator` against independent computations.
 
 Nothing here is checked against the simulator's own earlier output. Every returned state is
-checked by :func:`assert_invariants`, which rebuilds the world polygons of the object and of
-the hand from the conventions of docs/conventions.md (not from :mod:`grasp_env.kinematics` or
-:mod:`grasp_env.geometry`), measures penetration with its own separating-axis test,
-re-derives every contact's gap from its point and normal, sums the contact forces for the
-object's equilibrium and solves the velocity LP ``min m g v_y s.t. V_ob v >= 0`` itself
-with :func:`scipy.optimize.linprog`; a jammed state must also make the hand's continued
+checked by :func:`assert_invariants` with :func:`grasp_env.testing.check_state`, which
+rebuilds the world polygons of the object and of the hand from the conventions of
+docs/conventions.md (not from :mod:`grasp_env.kinematics` or :mod:`grasp_env.geometry`),
+measures penetration with its own separating-axis test, re-derives every contact's gap from
+its point and normal, checks that every touching vertex-body pair is listed, sums the contact
+forces for the object's equilibrium and solves the velocity LP ``min m g v_y s.t. V_ob v >=
+0`` with :func:`scipy.optimize.linprog`; a jammed state must also make the hand's continued
 motion impossible by an LP solved here (:func:`assert_jam_genuine`). The motions are
 checked against closed forms (a block
 tipping about a pivot, a square wedged between parallel fingertips, a hand lowered onto the
@@ -41,6 +42,7 @@ import grasp_env
 from grasp_env import Simulator, State
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.simulator import WorkLimitError
+from grasp_env.testing import check_state, cross, hand_polygons_W, rot
 
 SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
 SCENES = (
@@ -55,9 +57,6 @@ SCENES = (
     "flat_trapezoid",
 )
 HALF_PI = math.pi / 2
-#: Relative accuracy of the equilibrium residual (force and moment / object size) and of the
-#: descent LP's optimum, both as a fraction of the object's weight.
-EQ_RTOL = 1e-7
 #: Accuracy of poses compared with closed forms or with the same move cut into pieces.
 POSE_TOL = 1e-7
 #: At a fold (a jam where the active contacts' Jacobian turns singular) the pose moves as the
@@ -80,40 +79,8 @@ TEST_TIME_LIMIT = 90.0
 
 
 # ---------------------------------------------------------------------------------------
-# Independent geometry (docs/conventions.md, "Frames"; no grasp_env.geometry / kinematics)
+# Invariants of a returned state (grasp_env.testing: independent geometry and mechanics)
 # ---------------------------------------------------------------------------------------
-
-
-def rot(theta: float) -> np.ndarray:
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, -s], [s, c]])
-
-
-def object_polygon_W(scene: grasp_env.Scene, pose: np.ndarray) -> np.ndarray:
-    """Object vertices (n, 2) in the world: ``vertices_B`` rotated by theta, then shifted."""
-    return scene.object.vertices_B @ rot(pose[2]).T + pose[:2]
-
-
-def hand_polygons_W(scene: grasp_env.Scene, hand: np.ndarray) -> dict[str, np.ndarray]:
-    """World polygons (4, 2) of the palm and the two fingers for ``hand = (x, y, th, q1, q2)``.
-
-    Palm: the rectangle ``[-w/2, w/2] x [0, t]`` in P. Finger i: joint ``J_i = (-+w/2, 0)``,
-    tip ``T_i = J_i + L_i u_i``, inward normal ``u_1`` turned by +pi/2 (finger 1) or ``u_2``
-    turned by -pi/2 (finger 2), body of thickness ``t_i`` on the side away from the normal.
-    """
-    xp, yp, thp, q1, q2 = (float(v) for v in hand)
-    R, o = rot(thp), np.array([xp, yp])
-    w, tp = scene.palm.width, scene.palm.thickness
-    out = {"palm": np.array([[-w / 2, 0.0], [w / 2, 0.0], [w / 2, tp], [-w / 2, tp]]) @ R.T + o}
-    for i, (q, turn) in enumerate(((q1, 1.0), (q2, -1.0)), start=1):
-        f = scene.fingers[i - 1]
-        J = np.array([(-w / 2) if i == 1 else (w / 2), 0.0])
-        u = np.array([math.cos(q), math.sin(q)])
-        n = turn * np.array([-u[1], u[0]])
-        T = J + f.length * u
-        body = np.array([J, T, T - f.thickness * n, J - f.thickness * n])
-        out[f"finger{i}"] = body @ R.T + o
-    return out
 
 
 def fingertip_W(scene: grasp_env.Scene, hand: np.ndarray, finger: int) -> np.ndarray:
@@ -124,46 +91,6 @@ def fingertip_W(scene: grasp_env.Scene, hand: np.ndarray, finger: int) -> np.nda
     q = hand[2 + finger]
     T = J + scene.fingers[finger - 1].length * np.array([math.cos(q), math.sin(q)])
     return rot(thp) @ T + np.array([xp, yp])
-
-
-def edges(poly: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``(a, b, outward unit normal)`` of every edge of a polygon of either orientation."""
-    area2 = sum(poly[k, 0] * poly[k - 1, 1] - poly[k - 1, 0] * poly[k, 1] for k in range(len(poly)))
-    sign = -1.0 if area2 > 0 else 1.0  # the sum above is minus twice the signed area
-    for k in range(len(poly)):
-        a, b = poly[k], poly[(k + 1) % len(poly)]
-        d = b - a
-        yield a, b, sign * np.array([d[1], -d[0]]) / math.hypot(d[0], d[1])
-
-
-def sat_depth(a: np.ndarray, b: np.ndarray) -> float:
-    """Penetration depth of two convex polygons: the smallest overlap of their projections on
-    the edge normals of both (separating axis theorem); negative when they are apart."""
-    depth = math.inf
-    for poly in (a, b):
-        for _, _, n in edges(poly):
-            pa, pb = a @ n, b @ n
-            depth = min(depth, min(pa.max(), pb.max()) - max(pa.min(), pb.min()))
-    return depth
-
-
-def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    d = b - a
-    t = min(1.0, max(0.0, float((p - a) @ d) / float(d @ d)))
-    return float(np.linalg.norm(p - a - t * d))
-
-
-def boundary_distance(p: np.ndarray, poly: np.ndarray) -> float:
-    return min(segment_distance(p, a, b) for a, b, _ in edges(poly))
-
-
-def cross(a: np.ndarray, b: np.ndarray) -> float:
-    return float(a[0] * b[1] - a[1] * b[0])
-
-
-# ---------------------------------------------------------------------------------------
-# Invariants of a returned state
-# ---------------------------------------------------------------------------------------
 
 
 @dataclass
@@ -182,120 +109,28 @@ class Figures:
 FIGURES = Figures()
 
 
-def _note(seen: list, name: str, value: float, larger_is_worse: bool, where: str) -> None:
-    """Queue a figure; :func:`_commit` records the queue once a state passes every check."""
-    seen.append((name, float(value), larger_is_worse, where))
-
-
-def _commit(seen: list) -> None:
-    FIGURES.states += 1
-    for name, value, larger_is_worse, where in seen:
-        old = getattr(FIGURES, name)
-        if (value > old) if larger_is_worse else (value < old):
-            setattr(FIGURES, name, value)
-            FIGURES.where[name] = where
-
-
 def assert_invariants(state: State, tol: float, where: str = "") -> None:
-    """Check a returned state with geometry and mechanics computed here.
+    """Check a returned state with :func:`grasp_env.testing.check_state` (geometry and
+    mechanics recomputed independently of the simulator) and note its figures.
 
     Args:
         state: a state returned by the simulator.
         tol: the simulator's contact tolerance as a length (``contact_tol * palm width``).
         where: text naming the state (seed, move) for failure messages.
     """
-    scene = state.scene
-    W = scene.object_weight
-    obj = object_polygon_W(scene, state.object_pose)
-    size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
-    com = state.object_pose[:2]
-    hand = hand_polygons_W(scene, state.hand)
-    msg = f"{where}: "
-    seen: list = []
-
-    # No NaN or inf anywhere.
-    assert np.all(np.isfinite(state.object_pose)), msg + f"object pose {state.object_pose}"
-    assert np.all(np.isfinite(state.hand)), msg + f"hand {state.hand}"
     assert state.object_pose.shape == (3,) and state.hand.shape == (5,)
     np.testing.assert_array_equal(state.palm_pose, state.hand[:3])
     np.testing.assert_array_equal(state.finger_angles, state.hand[3:])
-
-    # No penetration: object vs hand bodies and support; hand vs support.
-    limit = tol + ROUNDING
-    depth_support = -float(obj[:, 1].min())
-    _note(seen, "penetration", depth_support / scene.palm.width, True, where + " support")
-    assert depth_support <= limit, msg + f"object {depth_support:.3e} below the support"
-    for name, poly in hand.items():
-        d = sat_depth(obj, poly)
-        _note(seen, "penetration", d / scene.palm.width, True, f"{where} {name}")
-        assert d <= limit, msg + f"object penetrates {name} by {d:.3e} (tol {tol:.1e})"
-        low = float(poly[:, 1].min())
-        assert low >= -limit, msg + f"{name} vertex at y = {low:.3e} below the support"
-
-    # Contacts: forces >= 0, point on both boundaries, normal of the right edge, |gap| <= tol.
-    assert state.contacts, msg + "no contacts (the support should at least catch the object)"
-    for c in state.contacts:
-        p, n = np.asarray(c.point, float), np.asarray(c.normal, float)
-        cm = msg + f"contact {c.body}/{c.kind} at {p}: "
-        assert np.all(np.isfinite(p)) and np.all(np.isfinite(n)) and math.isfinite(c.force)
-        assert c.force >= 0.0, cm + f"negative force {c.force}"
-        assert abs(np.linalg.norm(n) - 1.0) < 1e-12, cm + f"normal {n} is not a unit vector"
-        assert boundary_distance(p, obj) <= limit, cm + "point is off the object boundary"
-        if c.body == "support":
-            np.testing.assert_allclose(n, [0.0, 1.0], atol=1e-12, err_msg=cm)
-            gap = float(p[1])
-        else:
-            body = hand[c.body]
-            assert boundary_distance(p, body) <= limit, cm + "point is off the hand boundary"
-            if c.kind == "edge":  # object vertex on a hand edge: n is that edge's outward normal
-                vertex = obj[np.argmin(np.linalg.norm(obj - p, axis=1))]
-                feature, other = body, vertex
-                sign = 1.0
-            else:  # hand vertex on an object edge: n is minus that edge's outward normal
-                vertex = body[np.argmin(np.linalg.norm(body - p, axis=1))]
-                feature, other = obj, vertex
-                sign = -1.0
-            assert np.linalg.norm(vertex - p) <= limit, cm + "point is not the body's vertex"
-            matches = [
-                float(m @ (other - a))
-                for a, b, m in edges(feature)
-                if np.abs(sign * m - n).max() < 1e-9 and segment_distance(p, a, b) <= limit
-            ]
-            assert matches, cm + f"normal {n} is not the normal of an edge through the point"
-            gap = min(matches, key=abs)
-        _note(seen, "gap", abs(gap) / scene.palm.width, True, where)
-        assert abs(gap) <= limit, cm + f"gap {gap:.3e} exceeds tol {tol:.1e}"
-
-    # Equilibrium of the object: sum c_i n_i + m g = 0 and the moment about the COM.
-    P = np.array([c.point for c in state.contacts], dtype=float)
-    N = np.array([c.normal for c in state.contacts], dtype=float)
-    C = np.array([c.force for c in state.contacts], dtype=float)
-    force = C @ N + np.array([0.0, -W])
-    moment = sum(ci * cross(pi - com, ni) for ci, pi, ni in zip(C, P, N, strict=True))
-    residual = math.hypot(*force, moment / size) / W
-    _note(seen, "residual", residual, True, where)
-    assert residual <= EQ_RTOL, msg + f"equilibrium residual {residual:.3e} x weight"
-
-    # No admissible descent (hand at rest): min W v_y s.t. V_ob v >= 0 has optimum 0. The
-    # box (in twists scaled by the object size) keeps the LP bounded so a descent shows as a
-    # negative optimum rather than as "unbounded".
-    V = np.column_stack([N, [cross(pi - com, ni) / size for pi, ni in zip(P, N, strict=True)]])
-    # HiGHS's default feasibility tolerance (1e-7) is too loose near a fold, where V_ob is
-    # nearly singular (a jam with contact forces ~1e7 x weight): a near-null twist that
-    # violates V v >= 0 by 1e-8 would pass as a descent.
-    res = linprog(
-        [0.0, W, 0.0],
-        A_ub=-V,
-        b_ub=np.zeros(len(V)),
-        bounds=[(-1, 1)] * 3,
-        options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10},
-    )
-    assert res.status == 0, msg + f"descent LP: {res.message}"
-    _note(seen, "descent", res.fun / W, False, where)
-    assert res.fun >= -EQ_RTOL * W, (
-        msg + f"admissible descent: W v_y = {res.fun:.3e} along (vx, vy, size w) = {res.x}"
-    )
-    _commit(seen)
+    chk = check_state(state.scene, state.object_pose, state.hand, state.contacts, tol)
+    assert not chk.violations, f"{where}: " + "; ".join(chk.violations)
+    FIGURES.states += 1
+    for name, larger_is_worse in (
+        ("penetration", True), ("gap", True), ("residual", True), ("descent", False),
+    ):  # fmt: skip
+        value, old = getattr(chk, name), getattr(FIGURES, name)
+        if (value > old) if larger_is_worse else (value < old):
+            setattr(FIGURES, name, value)
+            FIGURES.where[name] = where
 
 
 #: A jam must be genuine: the hand's continued motion needs an object velocity at least this

@@ -1,7 +1,7 @@
 """Short versions of the soak (benchmarks/soak.py) and the memory check.
 
 * ``test_soak_short``: 1,000 random-action env steps on 10 random stress shapes, every step
-  checked by :func:`soak.check_state`; nothing may raise, fail or violate an invariant.
+  checked by :func:`grasp_env.testing.check_state`; nothing may raise, fail or violate an invariant.
 * ``test_soak_10k`` (slow): the same over 10,000 steps and 100 shapes in two processes.
 * ``test_soak_resumes``: an interrupted soak resumes from its checkpoint and gives the same
   records as an uninterrupted one.
@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from grasp_env import testing
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -32,8 +33,8 @@ def assert_clean(records: list[dict]) -> dict:
     assert s["sim_errors"] == 0, examples
     assert s["nan"] == 0, examples
     assert s["violating_steps"] == 0, (s["bad_shapes"], examples)
-    assert s["penetration"] <= 1e-9 + soak.ROUNDING
-    assert s["residual"] <= soak.EQ_RTOL
+    assert s["penetration"] <= 1e-9 + testing.ROUNDING
+    assert s["residual"] <= testing.EQ_RTOL
     return s
 
 

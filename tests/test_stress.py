@@ -3,10 +3,11 @@
 Hypothesis draws convex polygons over the stress ranges (3-12 vertices, diameter 5%-80% of
 the palm width, aspect up to 1:20, masses 1e-3..10, nearly collinear vertices, very short
 edges, nearly parallel edges, slivers: :func:`soak.stress_polygon`) and random hand paths or
-env action sequences. After every step the state is checked by :func:`soak.check_state`, an
-independent re-computation (separating-axis penetration, contact gaps from the points and
-normals, every touching vertex-body pair listed, forces >= 0, the object's equilibrium
-residual, and the velocity LP's optimum solved with scipy's HiGHS).
+env action sequences. After every step the state is checked by
+:func:`grasp_env.testing.check_state`, an independent re-computation (separating-axis
+penetration, contact gaps from the points and normals, every touching vertex-body pair
+listed, forces >= 0, the object's equilibrium residual, and the velocity LP's optimum solved
+with scipy's HiGHS).
 
 The default run keeps ``max_examples`` small; ``pytest -m slow`` runs the larger variants.
 Failures hypothesis shrank are pinned below as explicit regression tests.
@@ -24,7 +25,7 @@ from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
 import grasp_env
-from grasp_env import Simulator
+from grasp_env import Simulator, testing
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.errors import SceneError
 
@@ -92,8 +93,8 @@ def tol_of(scene: grasp_env.Scene, contact_tol: float = 1e-9) -> float:
     return contact_tol * scene.palm.width
 
 
-def assert_valid(scene, object_pose, hand, contacts, tol: float, where: str) -> soak.Check:
-    chk = soak.check_state(scene, object_pose, hand, contacts, tol)
+def assert_valid(scene, object_pose, hand, contacts, tol: float, where: str) -> testing.Check:
+    chk = testing.check_state(scene, object_pose, hand, contacts, tol)
     assert not chk.violations, f"{where}: " + "; ".join(chk.violations)
     return chk
 
@@ -174,7 +175,8 @@ def _fig13_state():
     ],
 )
 def test_checker_catches_broken_states(case: str, expect: str | None) -> None:
-    """:func:`soak.check_state` accepts a valid state and flags each kind of broken one."""
+    """:func:`grasp_env.testing.check_state` accepts a valid state and flags each kind of
+    broken one."""
     sim, state = _fig13_state()
     scene, tol = sim.scene, tol_of(sim.scene)
     pose, hand = state.object_pose.copy(), state.hand.copy()
@@ -193,7 +195,7 @@ def test_checker_catches_broken_states(case: str, expect: str | None) -> None:
         contacts[0]["force"] *= 1.001
     elif case == "finger_inside":
         hand[3] += 0.6  # finger 1 swings into the object
-    chk = soak.check_state(scene, pose, hand, contacts, tol)
+    chk = testing.check_state(scene, pose, hand, contacts, tol)
     if expect is None:
         assert chk.violations == []
     else:
