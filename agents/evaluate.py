@@ -34,7 +34,7 @@ import numpy as np
 
 import grasp_env
 from agents.train_ppo import MODEL_DIR, load_agent
-from grasp_env.cli import HelpFormatter
+from grasp_env.cli import HelpFormatter, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 
 #: First seed of the held-out shapes. Training seeds its envs with ``seed + rank`` and its
@@ -430,16 +430,6 @@ def _one_thread() -> None:
     torch.set_num_threads(1)
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m agents.evaluate",
@@ -459,13 +449,13 @@ def main(argv: list[str] | None = None) -> None:
         metavar="PATH",
         help="agents.train_rllib run directories or their checkpoint/ (needs ray[rllib])",
     )
-    parser.add_argument("--episodes", type=_positive_int, default=20, help="held-out shapes")
-    parser.add_argument("--bundled-episodes", type=_positive_int, default=1, help="per scene")
+    parser.add_argument("--episodes", type=positive_int, default=20, help="held-out shapes")
+    parser.add_argument("--bundled-episodes", type=positive_int, default=1, help="per scene")
     parser.add_argument(
         "--scene", "--scenes", dest="scenes", nargs="+", help="bundled scenes (default: all)"
     )
-    parser.add_argument("--max-steps", type=_positive_int, help="episode length (the env's: 200)")
-    parser.add_argument("--workers", type=_positive_int, default=1, help="processes")
+    parser.add_argument("--max-steps", type=positive_int, help="episode length (the env's: 200)")
+    parser.add_argument("--workers", type=positive_int, default=1, help="processes")
     parser.add_argument("--out", default="runs/evaluation", help="output directory")
     parser.add_argument("--no-scripted", action="store_true", help="leave the planner out")
     args = parser.parse_args(argv)

@@ -47,6 +47,7 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from grasp_env.cli import positive_int
 from grasp_env.envs import ENTRY_POINT, ENV_ID, RANDOM_SHAPES_ENV_ID
 
 #: Reward terms of FrictionlessGrasp (``info["reward_<term>"]``), summed per episode.
@@ -759,14 +760,6 @@ def load_agent(model_dir: str | os.PathLike):
 
 
 # ---------------------------------------------------------------------- command line
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
 
 def _int(text: str) -> int:
@@ -843,7 +836,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "-n",
         "--n-timesteps",
-        type=_positive_int,
+        type=positive_int,
         metavar="N",
         help="total env steps (default: the entry's n_timesteps)",
     )
@@ -890,9 +883,7 @@ def parser() -> argparse.ArgumentParser:
         choices=["dummy", "subproc"],
         help="vector env class of the training envs",
     )
-    p.add_argument(
-        "--num-threads", type=_positive_int, default=1, metavar="N", help="torch threads"
-    )
+    p.add_argument("--num-threads", type=positive_int, default=1, metavar="N", help="torch threads")
     p.add_argument(
         "--eval-freq",
         type=_int,
@@ -902,7 +893,7 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--eval-episodes",
-        type=_positive_int,
+        type=positive_int,
         default=5,
         metavar="N",
         help="episodes per evaluation",

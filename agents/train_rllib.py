@@ -33,7 +33,7 @@ import gymnasium as gym
 import yaml
 
 from agents.train_ppo import wrapper_specs
-from grasp_env.cli import out_dir_problem
+from grasp_env.cli import nonnegative_int, out_dir_problem, positive_int
 
 if TYPE_CHECKING:
     from ray.rllib.algorithms.algorithm import Algorithm
@@ -299,21 +299,6 @@ def train(
 
 
 # ---------------------------------------------------------------------- command
-def _nonnegative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    value = _nonnegative_int(text)
-    if value == 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
 
 def _out_problem(out: Path) -> str | None:
@@ -331,7 +316,7 @@ def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, An
     arguments and the entry."""
     parser = argparse.ArgumentParser(prog="python -m agents.train_rllib", description=__doc__)
     parser.add_argument("--env", required=True, help="env id (a top-level key of --config)")
-    parser.add_argument("--num-env-runners", type=_nonnegative_int, required=True)
+    parser.add_argument("--num-env-runners", type=nonnegative_int, required=True)
     parser.add_argument("--config", default=str(DEFAULT_CONFIG), help="RLlib PPO YAML file")
     parser.add_argument("--address", type=check_address, help="Ray cluster (default: local)")
     parser.add_argument(
@@ -339,15 +324,15 @@ def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, An
     )
     parser.add_argument(
         "--num-cpus",
-        type=_positive_int,
+        type=positive_int,
         help="CPUs of the local instance (default: all cores, one per env runner at least)",
     )
     stop = parser.add_mutually_exclusive_group()
-    stop.add_argument("--iterations", type=_positive_int, help="training iterations")
-    stop.add_argument("--timesteps", type=_positive_int, help="env steps (default: entry's)")
+    stop.add_argument("--iterations", type=positive_int, help="training iterations")
+    stop.add_argument("--timesteps", type=positive_int, help="env steps (default: entry's)")
     parser.add_argument("--out", help="run directory (default runs/rllib/<env id>)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--checkpoint-every", type=_positive_int, default=10, help="iterations")
+    parser.add_argument("--checkpoint-every", type=positive_int, default=10, help="iterations")
     args = parser.parse_args(argv)
     if args.address is None and args.ship_code:
         parser.error("--ship-code needs --address (a local instance uses this checkout)")
