@@ -82,3 +82,9 @@ def solve(
     duals_ub = res.ineqlin.marginals if A_ub is not None else np.zeros(0)
     duals_eq = res.eqlin.marginals if A_eq is not None else np.zeros(0)
     return LPResult(status, res.x, float(res.fun), duals_ub, duals_eq)
+
+
+def velocity_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> LPResult:
+    """The velocity formulation of the motion LP (eqs. 19-21), ``min W v_y  s.t.  V v >= xi``
+    with ``v`` free; its duals (``-duals_ub``) are the contact forces of the force LP."""
+    return solve(np.array([0.0, weight, 0.0]), A_ub=-V, b_ub=-xi, bounds=(None, None))

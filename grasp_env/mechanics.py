@@ -138,11 +138,6 @@ class MotionLP:
     value: float
 
 
-def velocity_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
-    """Velocity formulation (eqs. 19-21): ``min m g v_y  s.t.  V v >= xi``, ``v`` free."""
-    return lp.solve(np.array([0.0, weight, 0.0]), A_ub=-V, b_ub=-xi_, bounds=(None, None))
-
-
 def force_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
     """Force formulation (eqs. 22-24): ``max xi^T lam  s.t.  V^T lam = m gamma, lam >= 0``.
 
@@ -167,7 +162,7 @@ def motion_lp(V: np.ndarray, xi_: np.ndarray, weight: float, solver: str = "fast
             return MotionLP(res.status, res.v, res.lam, res.value)
         except SolverError:
             pass  # undecided in double precision: the reference path decides
-    vel = velocity_lp(V, xi_, weight)
+    vel = lp.velocity_lp(V, xi_, weight)
     if vel.status != "optimal":
         return MotionLP(vel.status, None, None, vel.value)
     # The force LP's solution is the velocity LP's dual (HiGHS marginals of V v >= xi).

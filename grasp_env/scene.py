@@ -38,6 +38,7 @@ import yaml
 
 from grasp_env import geometry as geo
 from grasp_env.errors import SceneError
+from grasp_env.kinematics import hand_polygons_W
 
 if TYPE_CHECKING:
     from importlib.resources.abc import Traversable
@@ -373,8 +374,6 @@ def _check_edges(scene: Scene) -> None:
 
 def _check_placement(scene: Scene) -> None:
     """Refuse an object below the support or inside the hand, and a hand inside the support."""
-    from grasp_env.kinematics import hand_polygons_W  # local: kinematics imports scene types
-
     tol = DEFAULT_CONTACT_TOL * scene.palm.width
     obj = scene.object.vertices_W0
     if obj[:, 1].min() < -tol:

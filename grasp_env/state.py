@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
 from grasp_env.contacts import Contact
+from grasp_env.geometry import BODY_NAMES
 from grasp_env.scene import Scene
 
 
@@ -54,15 +54,6 @@ class State:
     hand_blocked: bool = False
     events: tuple[Event, ...] = field(default=())
 
-    @cached_property
-    def form_closure(self) -> bool:
-        """Whether the contacts leave the object no motion at all (computed on first use). A
-        jam is not always form closure: a square wedged between two fingertips jams without
-        it."""
-        from grasp_env.mechanics import is_form_closure
-
-        return is_form_closure(self)
-
     @property
     def on_support(self) -> bool:
         """Whether the object touches the support."""
@@ -78,8 +69,6 @@ class State:
 
     def contact_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Points (n, 2), normals (n, 2) and body indices (n,) of the contacts."""
-        from grasp_env.geometry import BODY_NAMES
-
         n = len(self.contacts)
         pts = np.array([c.point for c in self.contacts]).reshape(n, 2)
         nrm = np.array([c.normal for c in self.contacts]).reshape(n, 2)

@@ -91,7 +91,7 @@ def feasibility(V: np.ndarray, xi: np.ndarray) -> lp.LPResult:
 
 
 def reference(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> lp.LPResult:
-    """The reference path: the velocity LP through HiGHS (``mechanics.velocity_lp`` for gravity).
+    """The reference path: the velocity LP through HiGHS (``grasp_env.lp.velocity_lp`` for gravity).
 
     HiGHS's presolve labels some feasible, unbounded velocity LPs "infeasible" and fails on
     others (scipy 1.17, see ``test_highs_trouble``), so an infeasible verdict is confirmed by
@@ -99,7 +99,7 @@ def reference(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> lp.LPResult:
     """
     try:
         if np.array_equal(c, GRAVITY_COST):
-            res = mech.velocity_lp(V, xi, WEIGHT)
+            res = lp.velocity_lp(V, xi, WEIGHT)
         else:
             res = lp.solve(c, A_ub=-V, b_ub=-xi, bounds=(None, None))
     except SolverError:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, objmode
 
+from grasp_env import lp
 from grasp_env.sim import CACHE, contact_sets, dense, least_norm, velocity_lp
 from grasp_env.sim.hand import contact_xi
 from grasp_env.sim.placement import contact_rows
@@ -24,13 +25,12 @@ MOVE, JAM, FALL = 0, 1, 2
 
 
 def reference_motion_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> tuple:
-    """The motion LP through HiGHS (:func:`grasp_env.mechanics.motion_lp`), as
-    ``(status, v, lam, value)`` with :mod:`grasp_env.sim.velocity_lp`'s status codes."""
-    from grasp_env.mechanics import motion_lp  # the analysis layer sits above the kernels
-
-    res = motion_lp(V, xi, weight, "highs")
+    """The motion LP through HiGHS (:func:`grasp_env.lp.velocity_lp`, whose duals are the
+    contact forces), as ``(status, v, lam, value)`` with :mod:`grasp_env.sim.velocity_lp`'s
+    status codes."""
+    res = lp.velocity_lp(V, xi, weight)
     if res.status == "optimal":
-        return velocity_lp.OPTIMAL, res.velocity, res.forces, res.value
+        return velocity_lp.OPTIMAL, res.x, -res.duals_ub, res.value
     status = velocity_lp.INFEASIBLE if res.status == "infeasible" else velocity_lp.UNBOUNDED
     return status, np.zeros(3), np.zeros(len(xi)), res.value
 
