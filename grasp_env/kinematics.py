@@ -93,3 +93,21 @@ def fingertips_W(scene: Scene, h: np.ndarray) -> np.ndarray:
             for i in range(2)
         ]
     )
+
+
+def hand_placement_problem(
+    scene: Scene, object_pose: np.ndarray, h: np.ndarray, tol: float
+) -> str | None:
+    """Why hand configuration ``h`` is not allowed with the object at ``object_pose``, or None
+    if it is: a hand body entering the support or overlapping the object by more than
+    ``tol`` (a length)."""
+    obj = geo.transform(object_pose, scene.object.vertices_B)
+    names = ("palm", "finger 1", "finger 2")
+    for name, poly in zip(names, hand_polygons_W(scene, h), strict=True):
+        lowest = float(poly[:, 1].min())
+        if lowest < -tol:
+            return f"the {name} enters the support (lowest y = {lowest:.4g})"
+        depth = geo.penetration_depth(poly, obj)
+        if depth > tol:
+            return f"the {name} overlaps the object by {depth:.4g}"
+    return None

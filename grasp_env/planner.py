@@ -169,15 +169,6 @@ def touching_bodies(state: State) -> set[str]:
     return {c.body for c in state.contacts}
 
 
-def _hand_clear(scene, h: np.ndarray, q_obj: np.ndarray, tol: float) -> bool:
-    """No hand body enters the support or overlaps the object (beyond ``tol``)."""
-    obj = geo.transform(q_obj, scene.object.vertices_B)
-    for poly in kin.hand_polygons_W(scene, h):
-        if poly[:, 1].min() < -tol or geo.penetration_depth(poly, obj) > tol:
-            return False
-    return True
-
-
 def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray, tol: float) -> float | None:
     """Angle at which finger ``finger`` (1 or 2), closing from its open limit with the rest of
     the hand fixed, first touches the object; None if it never does within its limits."""
@@ -251,7 +242,7 @@ def tipping_placement(
                 if q_move is None:
                     continue
                 h[2 + move] = q_move
-                if not _hand_clear(scene, h, q_obj, 10 * tol):
+                if kin.hand_placement_problem(scene, q_obj, h, 10 * tol) is not None:
                     continue
                 try:
                     state = sim.settle(q_obj, h)
@@ -775,7 +766,10 @@ def _segment_clear(scene, a: np.ndarray, b: np.ndarray, q_obj: np.ndarray, tol: 
     w = scene.palm.width
     span = max(float(np.abs(d[:2]).max()) / w, float(np.abs(d[2:]).max()) * 0.5)
     n = max(1, math.ceil(span / APPROACH_RESOLUTION))
-    return all(_hand_clear(scene, a + (k / n) * d, q_obj, tol) for k in range(1, n + 1))
+    return all(
+        kin.hand_placement_problem(scene, q_obj, a + (k / n) * d, tol) is None
+        for k in range(1, n + 1)
+    )
 
 
 def approach_path(sim: Simulator, state: State, target: np.ndarray) -> list[np.ndarray] | None:
@@ -870,7 +864,7 @@ def _slide(h: np.ndarray, direction: np.ndarray, length: float, step: float, acc
 
 
 def _clear_of(scene, q_obj: np.ndarray, tol: float):
-    return lambda h: _hand_clear(scene, h, q_obj, tol)
+    return lambda h: kin.hand_placement_problem(scene, q_obj, h, tol) is None
 
 
 def _sweep_clear(scene, opened_fingers: np.ndarray, q_obj: np.ndarray, tol: float):

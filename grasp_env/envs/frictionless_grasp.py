@@ -374,16 +374,9 @@ class FrictionlessGraspEnv(gym.Env):
                 f"{name} {_short(spec)}: the object has {n} vertices, more than "
                 f"max_vertices={self.max_vertices}"
             )
-        w = scene.palm.width
-        x_p, y_p, th_p = scene.palm.pose
-        x0 = scene.object.start_pose[0]
-        if abs(x_p - x0) > PALM_X_RANGE * w or not 0 <= y_p <= PALM_Y_MAX * w:
-            raise ValueError(
-                f"{name} {_short(spec)}: palm.pose {scene.palm.pose.tolist()} is outside the "
-                f"workspace |x - x0| <= {PALM_X_RANGE} w, 0 <= y <= {PALM_Y_MAX} w"
-            )
-        if abs(th_p) > PALM_THETA_MAX:
-            raise ValueError(f"{name} {_short(spec)}: palm angle {th_p!r} is outside +-pi/2")
+        problem = _palm_problem(scene, scene.palm.pose)
+        if problem:
+            raise ValueError(f"{name} {_short(spec)}: palm.pose {problem}")
         if self.start != "scene":
             problem = _placement_problem(scene, scene.object.start_pose, hand_setup(scene))
             if problem:
@@ -415,15 +408,9 @@ class FrictionlessGraspEnv(gym.Env):
     def _check_hand(self, scene: Scene, opts: dict[str, Any]) -> np.ndarray:
         h = scene.initial_hand.copy()
         if "palm" in opts:
-            x, y, th = opts["palm"]
-            w, x0 = scene.palm.width, scene.object.start_pose[0]
-            if abs(x - x0) > PALM_X_RANGE * w or not 0 <= y <= PALM_Y_MAX * w:
-                raise ValueError(
-                    f"options['palm'] {opts['palm'].tolist()} is outside the workspace "
-                    f"|x - {x0:.4g}| <= {PALM_X_RANGE * w:.4g}, 0 <= y <= {PALM_Y_MAX * w:.4g}"
-                )
-            if abs(th) > PALM_THETA_MAX:
-                raise ValueError(f"options['palm'] angle {th!r} is outside [-pi/2, pi/2]")
+            problem = _palm_problem(scene, opts["palm"])
+            if problem:
+                raise ValueError(f"options['palm'] {problem}")
             h[:3] = opts["palm"]
         if "fingers" in opts:
             lim = scene.joint_limits
@@ -838,16 +825,21 @@ def _same_contacts(new: State, old: State) -> bool:
 
 def _placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:
     """Why a hand configuration is not allowed with the object at ``object_pose`` (None if
-    it is): a hand body overlapping the object or entering the support."""
-    tol = 1e-9 * scene.palm.width
-    obj = geo.transform(object_pose, scene.object.vertices_B)
-    names = ("palm", "finger 1", "finger 2")
-    for name, poly in zip(names, kin.hand_polygons_W(scene, hand), strict=True):
-        if poly[:, 1].min() < -tol:
-            return f"the {name} enters the support (lowest y = {poly[:, 1].min():.4g})"
-        depth = geo.penetration_depth(poly, obj)
-        if depth > tol:
-            return f"the {name} overlaps the object by {depth:.4g}"
+    it is), at the default contact tolerance."""
+    return kin.hand_placement_problem(scene, object_pose, hand, 1e-9 * scene.palm.width)
+
+
+def _palm_problem(scene: Scene, palm: np.ndarray) -> str | None:
+    """Why a palm pose lies outside the env's palm workspace (None if it is inside)."""
+    x, y, th = (float(v) for v in palm)
+    w, x0 = scene.palm.width, scene.object.start_pose[0]
+    if abs(x - x0) > PALM_X_RANGE * w or not 0 <= y <= PALM_Y_MAX * w:
+        return (
+            f"{[x, y, th]} is outside the palm workspace |x - {x0:.4g}| <= "
+            f"{PALM_X_RANGE * w:.4g}, 0 <= y <= {PALM_Y_MAX * w:.4g}"
+        )
+    if abs(th) > PALM_THETA_MAX:
+        return f"angle {th!r} is outside [-pi/2, pi/2]"
     return None
 
 
