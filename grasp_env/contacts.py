@@ -16,6 +16,7 @@ Normals always point into the object; gaps are positive when the bodies are apar
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -135,13 +136,11 @@ class LocalGeometry:
         self.half = float(scene.palm.width) / 2.0
 
 
+@lru_cache(maxsize=64)
 def local_geometry(scene: Scene) -> LocalGeometry:
-    """The scene's stacked body-frame geometry (cached on the scene)."""
-    cache = scene.__dict__.get("local_geometry")
-    if cache is None:
-        cache = LocalGeometry(scene)
-        object.__setattr__(scene, "local_geometry", cache)
-    return cache
+    """The scene's stacked body-frame geometry (scenes hash by identity; the last 64 are
+    kept, as :func:`grasp_env.kinematics.hand_polygons_local` keeps theirs)."""
+    return LocalGeometry(scene)
 
 
 def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[ContactKey]:
