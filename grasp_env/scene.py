@@ -37,6 +37,7 @@ import numpy as np
 import yaml
 
 from grasp_env import geometry as geo
+from grasp_env.arguments import is_real
 from grasp_env.errors import SceneError
 from grasp_env.kinematics import hand_polygons_W
 
@@ -180,7 +181,7 @@ _OBJECT_KEYS = {"vertices", "density", "mass"}
 def _number(
     value: Any, name: str, *, positive: bool = False, allow_inf: bool = False, angle: bool = False
 ) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+    if not is_real(value):
         raise SceneError(f"{name} must be a number, got {value!r}")
     try:
         x = float(value)

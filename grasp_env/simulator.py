@@ -31,6 +31,7 @@ from grasp_env import contacts as ct
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
 from grasp_env import mechanics as mech
+from grasp_env.arguments import real_vector
 from grasp_env.errors import SimulationError, SolverError, WorkLimitError
 from grasp_env.scene import Scene, load_scene
 from grasp_env.sim import events as ev
@@ -184,8 +185,8 @@ class Simulator:
 
     def settle(self, object_pose: np.ndarray, hand: np.ndarray) -> State:
         """State for a given object pose and hand configuration, after any fall to rest."""
-        q = _finite_vector(object_pose, 3, "object_pose")
-        h = _finite_vector(hand, 5, "hand")
+        q = real_vector(object_pose, "object_pose", 3)
+        h = real_vector(hand, "hand", 5)
         self._solves[0] = 0
         q, log = _compiled(move.settle, self.model, q, h, self._solves)
         return self._make_state(q, h, _events(log))
@@ -325,20 +326,7 @@ def _finite_floats(value, size: int, name: str) -> tuple | list:
     if type(value) is tuple and len(value) == size and all(type(x) is float for x in value):
         if all(map(math.isfinite, value)):  # the common case: a tuple of Python floats
             return value
-    return _finite_vector(value, size, name).tolist()
-
-
-def _finite_vector(value, size: int, name: str) -> np.ndarray:
-    """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``."""
-    try:
-        arr = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be {size} numbers, got {value!r}") from None
-    if arr.shape != (size,):
-        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return arr.copy()
+    return real_vector(value, name, size).tolist()
 
 
 __all__ = ["CONTACT_TOL_RANGE", "MAX_FORCE", "SimulationError", "Simulator", "WorkLimitError"]

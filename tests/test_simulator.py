@@ -1234,21 +1234,21 @@ def test_failed_fast_lp_retries_on_reference_path() -> None:
 def test_retry_result_is_valid(monkeypatch: pytest.MonkeyPatch) -> None:
     """A move retried on the reference path returns a valid state: here the first attempt
     fails on the reference LP (injected once) and the retry completes."""
-    from grasp_env import mechanics
+    from grasp_env import lp
     from grasp_env.errors import SolverError
 
-    real = mechanics.motion_lp
+    real = lp.velocity_lp
     calls = {"n": 0}
 
-    def once(V, xi_, weight, solver="fast"):
+    def once(V, xi, weight):
         calls["n"] += 1
         if calls["n"] == 1:
             raise SolverError("injected", "down once")
-        return real(V, xi_, weight, solver)
+        return real(V, xi, weight)
 
     sim = Simulator(scene_of("fig13"), lp_solver="highs")
     start = sim.reset()
-    monkeypatch.setattr(mechanics, "motion_lp", once)
+    monkeypatch.setattr(lp, "velocity_lp", once)
     state = sim.move_hand(start, fingers=(-HALF_PI + 0.45, -HALF_PI - 0.45))
     assert calls["n"] > 1
     assert_invariants(state, tol_of(sim), "retried move")
@@ -1257,15 +1257,15 @@ def test_retry_result_is_valid(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_failed_retry_raises_simulation_error(monkeypatch: pytest.MonkeyPatch) -> None:
     """If the reference path fails too, the move raises SimulationError naming both causes
     (here the reference LP fails, which both attempts of a reference-path simulator use)."""
-    from grasp_env import mechanics
+    from grasp_env import lp
     from grasp_env.errors import SolverError
 
-    def broken(V, xi_, weight, solver="fast"):
+    def broken(V, xi, weight):
         raise SolverError("injected", "highs path down")
 
     sim = Simulator(scene_of("fig13"), lp_solver="highs")
     start = sim.reset()
-    monkeypatch.setattr(mechanics, "motion_lp", broken)
+    monkeypatch.setattr(lp, "velocity_lp", broken)
     with pytest.raises(grasp_env.SimulationError, match=r"highs path down.*again.*highs path down"):
         sim.move_hand(start, fingers=(-HALF_PI + 0.45, -HALF_PI - 0.45))
 

@@ -384,7 +384,7 @@ def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch
     for the failing step, and which its retry uses too): ``step`` must not raise; it ends the
     episode with ``info["sim_error"]`` naming the failure and leaves the state as it was;
     once the solver works again, ``reset`` and ``step`` work."""
-    from grasp_env import mechanics
+    from grasp_env import lp
     from grasp_env.errors import SolverError
 
     env = FrictionlessGraspEnv("fig13", palm_control=True)
@@ -403,7 +403,7 @@ def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch
     sim = env.unwrapped.simulator
     with monkeypatch.context() as m:
         m.setattr(sim, "model", sim.model._replace(reference_lp=True))
-        m.setattr(mechanics, "motion_lp", fail)
+        m.setattr(lp, "velocity_lp", fail)
         obs, reward, term, _, info = env.step(good)
     assert term and "sim_error" in info and "injected failure" in info["sim_error"]
     np.testing.assert_array_equal(obs, obs0)

@@ -15,6 +15,7 @@ from gymnasium.utils import seeding
 
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
+from grasp_env.arguments import is_real, real_vector, short
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_shape_scene
 from grasp_env.errors import SolverError
 from grasp_env.mechanics import grip_objective, is_form_closure
@@ -362,26 +363,26 @@ class FrictionlessGraspEnv(gym.Env):
     def _load(self, spec: Any, name: str) -> Scene:
         if not isinstance(spec, str | os.PathLike | dict | Scene):
             raise TypeError(
-                f"{name} must be a bundled name, a path, a dict or a Scene, got {_short(spec)}"
+                f"{name} must be a bundled name, a path, a dict or a Scene, got {short(spec)}"
             )
         try:
             scene = load_scene(spec)
         except ValueError as exc:
-            raise ValueError(f"{name} {_short(spec)}: {exc}") from None
+            raise ValueError(f"{name} {_spec_name(spec)}: {exc}") from None
         n = len(scene.object.vertices_B)
         if n > self.max_vertices:
             raise ValueError(
-                f"{name} {_short(spec)}: the object has {n} vertices, more than "
+                f"{name} {_spec_name(spec)}: the object has {n} vertices, more than "
                 f"max_vertices={self.max_vertices}"
             )
         problem = _palm_problem(scene, scene.palm.pose)
         if problem:
-            raise ValueError(f"{name} {_short(spec)}: palm.pose {problem}")
+            raise ValueError(f"{name} {_spec_name(spec)}: palm.pose {problem}")
         if self.start != "scene":
             problem = _placement_problem(scene, scene.object.start_pose, hand_setup(scene))
             if problem:
                 raise ValueError(
-                    f"{name} {_short(spec)}: start={self.start!r} needs the pre-liftoff hand "
+                    f"{name} {_spec_name(spec)}: start={self.start!r} needs the pre-liftoff hand "
                     f"set-up, but there {problem}"
                 )
         return scene
@@ -402,7 +403,7 @@ class FrictionlessGraspEnv(gym.Env):
                 raise ValueError(str(exc)) from None
         for key, size in (("palm", 3), ("fingers", 2)):
             if options.get(key) is not None:
-                out[key] = _vector(options[key], f"options[{key!r}]", size)
+                out[key] = real_vector(options[key], f"options[{key!r}]", size)
         return out
 
     def _check_hand(self, scene: Scene, opts: dict[str, Any]) -> np.ndarray:
@@ -434,9 +435,9 @@ class FrictionlessGraspEnv(gym.Env):
         if type(action) is np.ndarray and action.dtype.kind == "f" and action.shape == (size,):
             values = action.tolist()  # the common case, checked as _vector would
             if not all(map(math.isfinite, values)):
-                raise ValueError(f"action must be finite, got {_short(action)}")
+                raise ValueError(f"action must be finite, got {short(action)}")
         else:
-            values = _vector(action, "action", size).tolist()
+            values = real_vector(action, "action", size).tolist()
         return [min(max(x, -1.0), 1.0) for x in values]
 
     # ------------------------------------------------------------------ reset
@@ -449,7 +450,7 @@ class FrictionlessGraspEnv(gym.Env):
         try:
             rng = copy.deepcopy(self.np_random) if seed is None else seeding.np_random(seed)[0]
         except gym.error.Error:
-            raise ValueError(f"seed must be None or an int >= 0, got {_short(seed)}") from None
+            raise ValueError(f"seed must be None or an int >= 0, got {short(seed)}") from None
         sim, state, error = self._start(rng, opts)
         analysis = self._analyse(state)
 
@@ -586,7 +587,7 @@ class FrictionlessGraspEnv(gym.Env):
         if self._sim is None:
             raise RuntimeError("call reset() before simulate_action()")
         if not isinstance(state, State):
-            raise TypeError(f"state must be a grasp_env.State, got {_short(state)}")
+            raise TypeError(f"state must be a grasp_env.State, got {short(state)}")
         return self._simulate(state, a)
 
     def _simulate(self, state: State, a: list[float]) -> State:
@@ -858,12 +859,9 @@ def _observation_bounds(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 
-def _short(spec: Any) -> str:
-    """``repr`` of a value for an error message: on one line, at most 80 characters."""
-    if isinstance(spec, Scene):
-        return repr(spec.name)
-    text = " ".join(repr(spec).split())
-    return text if len(text) <= 80 else text[:77] + "..."
+def _spec_name(spec: Any) -> str:
+    """A scene spec for an error message: a Scene by its name, anything else shortened."""
+    return repr(spec.name) if isinstance(spec, Scene) else short(spec)
 
 
 def _flag(value: Any, name: str) -> bool:
@@ -880,8 +878,8 @@ def _number(
     lo_open: bool = True,
     hi_open: bool = False,
 ) -> float:
-    if not _is_real(value):
-        raise TypeError(f"{name} must be a number, got {_short(value)}")
+    if not is_real(value):
+        raise TypeError(f"{name} must be a number, got {short(value)}")
     try:
         x = float(value)
     except OverflowError:  # an int beyond the float range
@@ -889,7 +887,7 @@ def _number(
     ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)
     if not ok:
         interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-        raise ValueError(f"{name} must be finite and in {interval}, got {_short(value)}")
+        raise ValueError(f"{name} must be finite and in {interval}, got {short(value)}")
     return x
 
 
@@ -897,46 +895,6 @@ def _numbers(value: Any, name: str, size: int, lo: float, hi: float) -> np.ndarr
     if not isinstance(value, list | tuple | np.ndarray) or len(value) != size:
         raise ValueError(f"{name} must be {size} numbers, got {value!r}")
     return np.array([_number(v, f"{name}[{i}]", lo, hi) for i, v in enumerate(value)])
-
-
-#: What counts as a real number, as a Python or numpy scalar and as an array's ``dtype.kind``:
-#: an int or a float, not a bool, a string, a complex number or anything else.
-_REAL_TYPES = (int, float, np.integer, np.floating)
-_REAL_KINDS = "iuf"
-
-
-def _is_real(value: Any) -> bool:
-    """Whether a scalar is a real number (see ``_REAL_TYPES``)."""
-    return isinstance(value, _REAL_TYPES) and not isinstance(value, bool)
-
-
-def _vector(value: Any, name: str, size: int) -> np.ndarray:
-    """``value`` as ``size`` finite floats, or ``ValueError`` naming ``name`` and showing the
-    value: a sequence of real numbers (:func:`_is_real`) or an int or float array. Strings,
-    complex numbers, bools, None and object arrays are refused rather than parsed or cast (a
-    complex number would lose its imaginary part, a bool would act as 0 or 1)."""
-    is_array = isinstance(value, np.ndarray)
-    try:
-        arr = value if is_array else np.asarray(value, dtype=object)
-    except (TypeError, ValueError):  # nesting numpy cannot even hold as objects
-        raise ValueError(f"{name} must be {size} real numbers, got {_short(value)}") from None
-    if arr.shape != (size,):
-        raise ValueError(
-            f"{name} must be {size} real numbers, got {_short(value)} of shape {arr.shape}"
-        )
-    if not (arr.dtype.kind in _REAL_KINDS if is_array else all(map(_is_real, arr))):
-        raise ValueError(
-            f"{name} must be real numbers (int or float; not bool, str, complex or object), "
-            f"got {_short(value)}"
-        )
-    try:
-        with np.errstate(over="ignore"):
-            arr = arr.astype(float)
-    except OverflowError:  # an int beyond the float range
-        arr = np.full(size, math.inf)
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name} must be finite, got {_short(value)}")
-    return arr
 
 
 def _shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float]] | None:

@@ -1,0 +1,56 @@
+"""Checks of the numbers users pass in (actions, hand targets, reset options, scene
+fields): errors name the argument and show the value.
+
+A real number is an int or a float, as a Python or numpy scalar or an int or float array;
+strings, complex numbers, bools, None and object arrays are refused rather than parsed or
+cast (a complex number would lose its imaginary part, a bool would act as 0 or 1).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+#: Real numbers as Python or numpy scalars, and as an array's ``dtype.kind``.
+REAL_TYPES = (int, float, np.integer, np.floating)
+REAL_KINDS = "iuf"
+
+
+def short(value: Any) -> str:
+    """``repr`` of a value for an error message: on one line, at most 80 characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def is_real(value: Any) -> bool:
+    """Whether a scalar is a real number (an int or a float, not a bool)."""
+    return isinstance(value, REAL_TYPES) and not isinstance(value, bool)
+
+
+def real_vector(value: Any, name: str, size: int) -> np.ndarray:
+    """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``
+    and showing the value: a sequence of real numbers or an int or float array."""
+    is_array = isinstance(value, np.ndarray)
+    try:
+        arr = value if is_array else np.asarray(value, dtype=object)
+    except (TypeError, ValueError):  # nesting numpy cannot even hold as objects
+        raise ValueError(f"{name} must be {size} real numbers, got {short(value)}") from None
+    if arr.shape != (size,):
+        raise ValueError(
+            f"{name} must be {size} real numbers, got {short(value)} of shape {arr.shape}"
+        )
+    if not (arr.dtype.kind in REAL_KINDS if is_array else all(map(is_real, arr))):
+        raise ValueError(
+            f"{name} must be real numbers (int or float; not bool, str, complex or object), "
+            f"got {short(value)}"
+        )
+    try:
+        with np.errstate(over="ignore"):
+            arr = arr.astype(float)
+    except OverflowError:  # an int beyond the float range
+        arr = np.full(size, math.inf)
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be finite, got {short(value)}")
+    return arr
