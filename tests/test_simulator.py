@@ -1174,6 +1174,10 @@ BAD_ARGS = {
     "fingers_string": ({"fingers": "closed"}, "fingers"),
     "fingers_dict": ({"fingers": {"q1": -1.0, "q2": -1.0}}, "fingers"),
     "fingers_nested": ({"fingers": [[-1.0, -1.0], [-1.0, -1.0]]}, "fingers"),
+    "fingers_numeric_strings": ({"fingers": ("-1.0", "-1.0")}, "fingers"),
+    "fingers_bools": ({"fingers": (True, False)}, "fingers"),
+    "fingers_complex": ({"fingers": (-1.0 + 1j, -1.0)}, "fingers"),
+    "palm_bool_array": ({"palm": np.array([True, False, True])}, "palm"),
 }
 
 
