@@ -28,7 +28,7 @@ import numpy as np
 
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
-from grasp_env import planner
+from grasp_env import planning
 from grasp_env.simulator import Simulator
 
 #: Frames of the filmstrip (the paper's Fig. 13 has 15) and its layout.
@@ -49,7 +49,7 @@ BRANCH_SAMPLES = 161
 
 
 # ---------------------------------------------------------------------- events and frames
-def _status(plan: planner.Plan) -> str:
+def _status(plan: planning.Plan) -> str:
     return "form closure" if plan.success else plan.status.replace("_", " ")
 
 
@@ -58,7 +58,7 @@ def _contact_name(body: str, kind: str) -> str:
     return f"{name} tip" if kind == "tip" else name
 
 
-def plan_events(plan: planner.Plan) -> dict[int, str]:
+def plan_events(plan: planning.Plan) -> dict[int, str]:
     """What happens at each notable step of the plan, as a short label by step index.
 
     The start, the last pre-liftoff step (fingers closed), contact changes (a new contact, a
@@ -112,7 +112,7 @@ def plan_events(plan: planner.Plan) -> dict[int, str]:
     return events
 
 
-def _motion(plan: planner.Plan) -> np.ndarray:
+def _motion(plan: planning.Plan) -> np.ndarray:
     """Cumulative motion of the bodies along the plan (palm widths): per step, the largest
     displacement of any vertex of the palm, the fingers or the object."""
     pts = []
@@ -129,7 +129,7 @@ def _motion(plan: planner.Plan) -> np.ndarray:
 _EVENT_PRIORITY = ("final grasp", "start", "form closure", "lift-off", "grip adjustment starts")
 
 
-def frame_indices(plan: planner.Plan, n: int) -> list[int]:
+def frame_indices(plan: planning.Plan, n: int) -> list[int]:
     """``n`` step indices (all steps if there are fewer) for the filmstrip: the steps of
     :func:`plan_events` first (by ``_EVENT_PRIORITY``, then in order), then, while frames are
     left, the step halfway (in motion of the bodies) through the stretch between chosen
@@ -164,7 +164,7 @@ def frame_indices(plan: planner.Plan, n: int) -> list[int]:
 
 
 def _caption(
-    plan: planner.Plan, i: int, weight: float, events: dict[int, str] | None = None
+    plan: planning.Plan, i: int, weight: float, events: dict[int, str] | None = None
 ) -> str:
     """One line: step, phase, event (``events``: :func:`plan_events`) and ``y*``."""
     st = plan.steps[i]
@@ -177,7 +177,7 @@ def _caption(
     return text
 
 
-def _title(plan: planner.Plan, i: int, events: dict[int, str], weight: float) -> list[str]:
+def _title(plan: planning.Plan, i: int, events: dict[int, str], weight: float) -> list[str]:
     """Two lines: the step and what happens there; the phase and ``y*``."""
     st = plan.steps[i]
     first = f"step {i}" + (f": {events[i]}" if i in events else "")
@@ -187,7 +187,7 @@ def _title(plan: planner.Plan, i: int, events: dict[int, str], weight: float) ->
     return [first, second]
 
 
-def plan_bounds(plan: planner.Plan, margin: float = 0.05) -> tuple[float, float, float, float]:
+def plan_bounds(plan: planning.Plan, margin: float = 0.05) -> tuple[float, float, float, float]:
     """World box ``(x_min, x_max, y_min, y_max)`` around every hand and object of the plan, plus
     ``margin`` palm widths, and the support band below ``y = 0``."""
     pts = []
@@ -201,7 +201,7 @@ def plan_bounds(plan: planner.Plan, margin: float = 0.05) -> tuple[float, float,
 
 
 # ---------------------------------------------------------------------- images
-def write_filmstrip(plan: planner.Plan, path: Path) -> list[int]:
+def write_filmstrip(plan: planning.Plan, path: Path) -> list[int]:
     """Frames of the plan in a grid (like the paper's Fig. 13), each titled with its step and
     event, its phase and ``y*``, above a legend; returns the steps shown."""
     from grasp_env.render import Renderer
@@ -252,7 +252,7 @@ def _save_png(image: np.ndarray, path: Path) -> None:
     imageio.imwrite(path, image)
 
 
-def write_gif(plan: planner.Plan, path: Path) -> None:
+def write_gif(plan: planning.Plan, path: Path) -> None:
     """Animated GIF of every step of the plan, each frame captioned (step, phase, event,
     ``y*``) above the legend."""
     from grasp_env.render import Renderer
@@ -273,12 +273,12 @@ def write_gif(plan: planner.Plan, path: Path) -> None:
 
 
 # ---------------------------------------------------------------------- Fig. 14
-def _branch_key(plan: planner.Plan, probe: planner.BranchProbe) -> tuple:
+def _branch_key(plan: planning.Plan, probe: planning.BranchProbe) -> tuple:
     contacts = plan.steps[probe.step].state.contacts
     return tuple(sorted(contacts[k].key for k in probe.kept))
 
 
-def _branch_label(plan: planner.Plan, probe: planner.BranchProbe) -> str:
+def _branch_label(plan: planning.Plan, probe: planning.BranchProbe) -> str:
     """The contacts a branch keeps (numbered as in the state it was evaluated from) and the
     ones it breaks."""
     contacts = plan.steps[probe.step].state.contacts
@@ -298,7 +298,7 @@ def trace_branch(
     ``kept``, traced by continuation from ``state`` towards ``q_lo`` and ``q_hi`` at ``n``
     angles across that range, as far as the branch stays valid."""
     keys = [state.contacts[k].key for k in kept]
-    br = planner.FourContactBranch(sim, keys, state.hand, kept)
+    br = planning.FourContactBranch(sim, keys, state.hand, kept)
     q0 = float(state.hand[3])
     grid = np.linspace(q_lo, q_hi, n)
     pts = {}
@@ -314,7 +314,7 @@ def trace_branch(
     return q, np.array([pts[x] for x in q])
 
 
-def write_branch_plot(sim: Simulator, plan: planner.Plan, path: Path) -> list[dict]:
+def write_branch_plot(sim: Simulator, plan: planning.Plan, path: Path) -> list[dict]:
     """The grip adjustment like the paper's Fig. 14, as a PNG; returns the branches drawn.
 
     Left: ``y*`` along each four-contact branch the adjustment evaluated (one curve per
@@ -450,7 +450,7 @@ def write_branch_plot(sim: Simulator, plan: planner.Plan, path: Path) -> list[di
     ax.legend(fontsize=9, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2)
 
     # context: the branches through the final grasp over a wider range
-    curves = planner.grip_curves(sim, final, half_width=BRANCH_HALF_WIDTH)
+    curves = planning.grip_curves(sim, final, half_width=BRANCH_HALF_WIDTH)
     for c in curves:
         if not c["q1"]:
             continue

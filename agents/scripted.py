@@ -4,7 +4,7 @@ Command::
 
     python -m agents.scripted --scene fig13 --out DIR
 
-plans a grasp with :func:`grasp_env.planner.plan_grasp` and writes into ``DIR``:
+plans a grasp with :func:`grasp_env.planning.plan_grasp` and writes into ``DIR``:
 ``filmstrip.png`` (frames like the paper's Fig. 13 at the steps where something happens:
 hand, object, contacts with force arrows, a title per frame, a legend), ``grip_branches.png``
 (``y*`` against the first finger's angle along every four-contact branch the grip
@@ -45,7 +45,7 @@ import numpy as np
 
 from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
 from grasp_env import mechanics as mech
-from grasp_env import planner
+from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.errors import SolverError
 from grasp_env.scene import bundled_scenes, load_scene
@@ -67,13 +67,13 @@ EXPLORE_MOVES = 20000
 CLOSE_STEPS = 64
 #: Whole-planner plans kept (per scene) by :class:`ScriptedPolicy` with palm control.
 PLAN_CACHE_SIZE = 16
-_PLAN_CACHE: dict[tuple, planner.Plan] = {}
+_PLAN_CACHE: dict[tuple, planning.Plan] = {}
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_TIPPABLE = 0, 1, 2, 3
 
 
 # ---------------------------------------------------------------------- outputs
-def plan_to_dict(plan: planner.Plan) -> dict:
+def plan_to_dict(plan: planning.Plan) -> dict:
     """The plan as JSON-ready data: status, phases and every step's state."""
     steps = []
     for i, st in enumerate(plan.steps):
@@ -111,7 +111,7 @@ def plan_to_dict(plan: planner.Plan) -> dict:
     }
 
 
-def summary(plan: planner.Plan) -> str:
+def summary(plan: planning.Plan) -> str:
     """Phase boundaries, the form-closure step, the final contacts and y*, the CPU time."""
     lines = [f"status: {plan.status} ({plan.message})"]
     if plan.placement:
@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--out {problem}")
 
     sim = Simulator(scene)
-    plan = planner.plan_grasp(scene, sim=sim, dq=args.dq)
+    plan = planning.plan_grasp(scene, sim=sim, dq=args.dq)
     print(f"scene: {scene.name}")
     if plan.status == "not_tippable":
         print(f"not tippable: {plan.message}")
@@ -196,15 +196,15 @@ class ScriptedPolicy:
     and from the ``"preliftoff"`` start, on scenes that lift from there.
 
     With ``palm_control`` True, if lifting from the env's placement fails and the object still
-    rests at its scene pose, it runs :func:`grasp_env.planner.plan_grasp` on the env's scene
+    rests at its scene pose, it runs :func:`grasp_env.planning.plan_grasp` on the env's scene
     (cached per scene in the process: the placement search can take a minute of CPU), drives
     the hand to the plan's pre-liftoff placement along a collision-free
-    :func:`grasp_env.planner.approach_path` (palm actions included), and there plans lifting
+    :func:`grasp_env.planning.approach_path` (palm actions included), and there plans lifting
     and grip adjustment again from the env's own state. Scenes whose only plans start with a
     tilted palm (square, heavy_square, triangle) need ``palm_control`` True; the approach
     takes most of the steps (about 90-150 at the default step sizes). Where no placement
     lifts the object (tall_rectangle), it plans the planner's exploratory lifting with palm
-    motion (:mod:`grasp_env.regrasp`) from the env's state on the env's own step function
+    motion (:mod:`grasp_env.planning.regrasp`) from the env's state on the env's own step function
     (``simulate_action``), so the env follows it exactly.
 
     It reads the env only through its public accessors (``env.unwrapped.state``,
@@ -218,7 +218,7 @@ class ScriptedPolicy:
     def __init__(self, env, dq: float = 0.02) -> None:
         self.env = env
         self.dq = dq
-        self.plan: planner.Plan | None = None
+        self.plan: planning.Plan | None = None
         self._ready = False  # reset() has planned
         self._transit_left = -1  # waypoints left before the planned placement (-1: none)
         # (hand, object pose, hand increment or None: the difference of the hands)
@@ -251,21 +251,21 @@ class ScriptedPolicy:
             if not self._replan_with_palm(sim, state):
                 self._explore(state)
 
-    def _fixed_palm_plan(self, sim: Simulator, state) -> planner.Plan:
+    def _fixed_palm_plan(self, sim: Simulator, state) -> planning.Plan:
         """Close until both fingers touch, lift and adjust the grip, the palm where it is."""
-        plan = planner.Plan()
-        plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
-        if not planner.both_fingers_touch(state):
-            state = planner.close_until_touch(sim, state)
-            plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "closing"))
-        state = planner.lift(sim, state, plan, self.dq)
+        plan = planning.Plan()
+        plan.steps.append(planning.PlanStep("pre-liftoff", state, math.nan, "env state"))
+        if not planning.both_fingers_touch(state):
+            state = planning.close_until_touch(sim, state)
+            plan.steps.append(planning.PlanStep("pre-liftoff", state, math.nan, "closing"))
+        state = planning.lift(sim, state, plan, self.dq)
         if plan.success:
-            planner.adjust_grip(sim, state, plan)
+            planning.adjust_grip(sim, state, plan)
         return plan
 
     def _use(
         self,
-        plan: planner.Plan,
+        plan: planning.Plan,
         transit: list[np.ndarray],
         increments: list[np.ndarray] | None = None,
     ) -> None:
@@ -284,7 +284,7 @@ class ScriptedPolicy:
     def _replan_with_palm(self, sim: Simulator, state) -> bool:
         """With palm control, when lifting from the env's hand placement fails: the whole
         planner's grasp (any of its placements, tilted palm included), reached from the env's
-        state along :func:`grasp_env.planner.approach_path`. Only while the object still rests
+        state along :func:`grasp_env.planning.approach_path`. Only while the object still rests
         at its scene pose (the plan starts there). At the placement, lifting is planned anew
         from the env's state (:meth:`act`): the planned squeeze can cross a tipping
         bifurcation, where round-off in the env's hand (float32 actions) changes the outcome."""
@@ -294,7 +294,7 @@ class ScriptedPolicy:
         plan = self._full_plan(sim)
         if not plan.success:
             return False
-        path = planner.approach_path(sim, state, plan.steps[0].state.hand)
+        path = planning.approach_path(sim, state, plan.steps[0].state.hand)
         if path is None:
             return False
         self._use(plan, path)
@@ -302,7 +302,7 @@ class ScriptedPolicy:
 
     def _explore(self, state) -> None:
         """With palm control, when no placement lifts the object: the planner's exploratory
-        lifting with palm motion (:mod:`grasp_env.regrasp`) from the env's state, then grip
+        lifting with palm motion (:mod:`grasp_env.planning.regrasp`) from the env's state, then grip
         adjustment; at most once an episode (``EXPLORE_MOVES``). The search simulates the very
         actions the policy will send
         (``simulate_action``, the env's own step), so the env follows the path exactly, past
@@ -327,7 +327,7 @@ class ScriptedPolicy:
         # finger action at a time, each finger stopping once it touches).
         states, increments = [state], []
         for _ in range(CLOSE_STEPS):
-            touching = planner.touching_bodies(states[-1])
+            touching = planning.touching_bodies(states[-1])
             dh = np.zeros(5)
             dh[3:] = base.max_finger_step * np.array(
                 [f"finger{i}" not in touching for i in (1, 2)], float
@@ -338,18 +338,18 @@ class ScriptedPolicy:
                 break
             states.append(new)
             increments.append(dh)
-        plan = planner.Plan()
-        plan.steps.append(planner.PlanStep("pre-liftoff", state, math.nan, "env state"))
-        end, increments = planner.explore(
+        plan = planning.Plan()
+        plan.steps.append(planning.PlanStep("pre-liftoff", state, math.nan, "env state"))
+        end, increments = planning.explore(
             base.simulator, plan, (states, increments), EXPLORE_MOVES, move
         )
         if not plan.success:
             return
-        planner.adjust_grip(base.simulator, end, plan)
+        planning.adjust_grip(base.simulator, end, plan)
         self._use(plan, [], increments)
 
-    def _full_plan(self, sim: Simulator) -> planner.Plan:
-        """:func:`grasp_env.planner.plan_grasp` on the env's scene, cached per scene (the
+    def _full_plan(self, sim: Simulator) -> planning.Plan:
+        """:func:`grasp_env.planning.plan_grasp` on the env's scene, cached per scene (the
         search over placements can take a minute)."""
         scene = sim.scene
         key = (repr(scene), self.dq)
@@ -357,7 +357,7 @@ class ScriptedPolicy:
             if len(_PLAN_CACHE) >= PLAN_CACHE_SIZE:
                 _PLAN_CACHE.pop(next(iter(_PLAN_CACHE)))
             # no exploratory lifting here: the policy explores from the env's own state
-            _PLAN_CACHE[key] = planner.plan_grasp(scene, sim=sim, dq=self.dq, explore_moves=0)
+            _PLAN_CACHE[key] = planning.plan_grasp(scene, sim=sim, dq=self.dq, explore_moves=0)
         return _PLAN_CACHE[key]
 
     def act(self, obs=None) -> np.ndarray:

@@ -31,12 +31,12 @@ def plan_one(seed: int) -> dict:
     import numpy as np
 
     from grasp_env import mechanics as mech
-    from grasp_env import planner
+    from grasp_env import planning
     from grasp_env.envs.shapes import random_shape_scene
     from grasp_env.scene import load_scene
 
     scene = random_shape_scene(np.random.default_rng(seed), load_scene("fig13"))
-    plan = planner.plan_grasp(scene)
+    plan = planning.plan_grasp(scene)
     final = plan.steps[-1].state if plan.steps else None
     ok = (
         plan.success

@@ -22,7 +22,7 @@ from grasp_env.envs import ENV_ID, REWARD_THRESHOLD, WRAPPER_ENTRY_POINT
 from grasp_env.envs import frictionless_grasp as fg_module
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv, _observation_bounds
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_convex_polygon
-from grasp_env.planner import close_until_touch
+from grasp_env.planning import close_until_touch
 
 PALM_CONTROL = [False, True]
 PALM_IDS = ["fingers-only", "palm-control"]

@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 from agents.plan_figures import frame_indices, plan_events, write_branch_plot
-from grasp_env import planner
+from grasp_env import planning
 from grasp_env.simulator import Simulator
 
 
 @pytest.fixture(scope="module")
 def fig13():
     sim = Simulator("fig13")
-    plan = planner.plan_grasp("fig13", sim=sim)
+    plan = planning.plan_grasp("fig13", sim=sim)
     assert plan.success
     return sim, plan
 

@@ -12,7 +12,7 @@ from scipy.optimize import linprog
 import grasp_env
 from grasp_env import geometry as geo
 from grasp_env import kinematics as kin
-from grasp_env import planner
+from grasp_env import planning
 from grasp_env.envs.shapes import random_shape_scene
 
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
@@ -57,15 +57,15 @@ def _params(names):
 
 @pytest.fixture(scope="module")
 def fig13_plan():
-    return planner.plan_grasp("fig13")
+    return planning.plan_grasp("fig13")
 
 
 @pytest.mark.parametrize("name", _params(TIPPABLE))
 def test_plan_ends_in_form_closure_off_the_support(name, fig13_plan):
-    plan = fig13_plan if name == "fig13" else planner.plan_grasp(name)
+    plan = fig13_plan if name == "fig13" else planning.plan_grasp(name)
     assert plan.success, plan.message
     _check_grasp(plan.steps[-1].state)
-    assert list(plan.phase_bounds()) == list(planner.PHASES)
+    assert list(plan.phase_bounds()) == list(planning.PHASES)
     fc = plan.form_closure_step()
     assert fc == plan.phase_bounds()["lifting"][1]
     # Grip adjustment keeps form closure off the support at every step (a via point between
@@ -91,7 +91,7 @@ def test_fig13_follows_the_papers_experiment(fig13_plan):
 
 def _random_shape_plan(seed: int):
     scene = random_shape_scene(np.random.default_rng(seed), grasp_env.load_scene("fig13"))
-    return planner.plan_grasp(scene), grasp_env.Simulator(scene)
+    return planning.plan_grasp(scene), grasp_env.Simulator(scene)
 
 
 @pytest.mark.parametrize("case", ["fig13", "random_shape_4"])
@@ -115,7 +115,7 @@ def test_grip_adjustment_descends_to_a_local_minimum(case, fig13_plan):
     keys = [c.key for c in final.contacts]
     checked = 0
     for sub in itertools.combinations(keys, 4):
-        branch = planner.FourContactBranch(sim, list(sub), final.hand)
+        branch = planning.FourContactBranch(sim, list(sub), final.hand)
         for step in (1e-4, 1e-3):
             for q in (q1 - step, q1 + step):
                 y_nb, z_nb = branch.grip(q, z)
@@ -126,7 +126,7 @@ def test_grip_adjustment_descends_to_a_local_minimum(case, fig13_plan):
 
 
 def test_non_tippable_scene_is_refused_without_steps():
-    plan = planner.plan_grasp("flat_trapezoid")
+    plan = planning.plan_grasp("flat_trapezoid")
     assert plan.status == "not_tippable" and not plan.success
     assert "without friction" in plan.message
 
@@ -135,7 +135,7 @@ def test_non_tippable_scene_is_refused_without_steps():
 def test_centred_placement_touches_with_both_fingers_clear_of_the_support(name):
     # Section 4: palm centred, parallel to the support, the longer finger just clear of it.
     sim = grasp_env.Simulator(name)
-    state = planner.centred_placement(sim)
+    state = planning.centred_placement(sim)
     assert {"finger1", "finger2"} <= {c.body for c in state.contacts}
     reach = max(f.length for f in sim.scene.fingers)
     assert state.palm_pose == pytest.approx([sim.scene.object.start_pose[0], reach + 0.01, 0.0])
@@ -147,7 +147,7 @@ def test_centred_placement_touches_with_both_fingers_clear_of_the_support(name):
 
 def test_tipping_placement_puts_a_fingertip_at_a_support_contact():
     sim = grasp_env.Simulator("pentagon")
-    state, side = planner.tipping_placement(sim)
+    state, side = planning.tipping_placement(sim)
     left, right = grasp_env.tippability_regions(sim.scene)
     region = right if side == "right" else left
     hold = 1 if side == "right" else 0  # finger 2 holds the right support contact
@@ -162,9 +162,9 @@ def test_tipping_placement_puts_a_fingertip_at_a_support_contact():
 def test_approach_path_reaches_a_tilted_placement_without_touching_the_object():
     # From the centred placement (fingers touching) to a tilted-palm tipping placement.
     sim = grasp_env.Simulator("square")
-    target, _ = planner.tipping_placement(sim, palm_angles=(-0.4,), sides=("right",))
-    state = planner.centred_placement(sim)
-    path = planner.approach_path(sim, state, target.hand)
+    target, _ = planning.tipping_placement(sim, palm_angles=(-0.4,), sides=("right",))
+    state = planning.centred_placement(sim)
+    path = planning.approach_path(sim, state, target.hand)
     assert path is not None and np.array_equal(path[-1], target.hand)
     start = sim.scene.object.start_pose
     for h in path:
@@ -186,11 +186,11 @@ def test_approach_path_slides_a_fingertip_under_an_overhang(seed):
     # with the placement's angles would cut through the overhang.
     scene = random_shape_scene(np.random.default_rng(seed), grasp_env.load_scene("fig13"))
     sim = grasp_env.Simulator(scene)
-    target, _ = planner.tipping_placement(sim)
+    target, _ = planning.tipping_placement(sim)
     q1, q2 = target.finger_angles
     assert q1 > -np.pi / 2 and q2 < -np.pi / 2  # both fingers turned inward
     state = sim.reset()
-    path = planner.approach_path(sim, state, target.hand)
+    path = planning.approach_path(sim, state, target.hand)
     assert path is not None and np.array_equal(path[-1], target.hand)
     start = state.object_pose.copy()
     for h in path:  # replayed independently: the object never moves, the hand stays clear
@@ -231,7 +231,7 @@ def test_finger_gap_is_the_tip_distance_until_the_fingers_cross():
     def gap(q1, q2):
         state = sim.settle(q_obj, np.array([0.0, 2.0, 0.0, q1, q2]))
         tips = kin.fingertips_W(sim.scene, state.hand)
-        return planner.finger_gap(state), float(np.linalg.norm(tips[0] - tips[1]))
+        return planning.finger_gap(state), float(np.linalg.norm(tips[0] - tips[1]))
 
     # hanging straight down: parallel axes 1.0 apart (the tips, 0.6 and 0.7 down, are further)
     assert gap(-math.pi / 2, -math.pi / 2) == pytest.approx((1.0, math.hypot(1.0, 0.1)))

@@ -1,4 +1,5 @@
-"""Exploratory lifting with palm motion (grasp_env.regrasp): increments, search, shortcuts."""
+"""Exploratory lifting with palm motion (grasp_env.planning.regrasp): increments, search,
+shortcuts."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import pytest
 from test_planner import _check_grasp
 
 import grasp_env
-from grasp_env import planner, regrasp
+from grasp_env import planning
+from grasp_env.planning import regrasp
 
 SIZES = regrasp.IncrementSizes()
 
@@ -15,13 +17,13 @@ SIZES = regrasp.IncrementSizes()
 @pytest.fixture(scope="module")
 def fig13():
     sim = grasp_env.Simulator("fig13")
-    return sim, planner.centred_placement(sim)
+    return sim, planning.centred_placement(sim)
 
 
 def _move(sim):
     def move(state, dh):
         h = state.hand + dh
-        return planner._try_move(sim, state, palm=h[:3], fingers=h[3:])
+        return planning.try_move(sim, state, palm=h[:3], fingers=h[3:])
 
     return move
 
@@ -44,7 +46,7 @@ def test_hand_increments_are_single_moves_of_one_kind():
 def test_explore_lift_finds_a_grasp_that_replays_exactly(fig13):
     sim, start = fig13
     move = _move(sim)
-    found = regrasp.explore_lift(start, move, planner._grasped, seed=0, max_moves=2000)
+    found = regrasp.explore_lift(start, move, planning.grasped, seed=0, max_moves=2000)
     assert found.states is not None and found.moves <= 2000
     assert len(found.increments) == len(found.states) - 1
     _check_grasp(found.states[-1])  # form closure checked by an independent LP
@@ -60,7 +62,7 @@ def test_explore_lift_finds_a_grasp_that_replays_exactly(fig13):
 def test_explore_lift_is_seeded(fig13):
     sim, start = fig13
     runs = [
-        regrasp.explore_lift(start, _move(sim), planner._grasped, seed=s, max_moves=2000)
+        regrasp.explore_lift(start, _move(sim), planning.grasped, seed=s, max_moves=2000)
         for s in (3, 3, 4)
     ]
     same = [np.array([s.hand for s in r.states]) for r in runs]
@@ -78,8 +80,8 @@ def test_explore_lift_keeps_to_its_budget(fig13):
 def test_shorten_keeps_a_chain_of_moves_that_ends_in_form_closure(fig13):
     sim, start = fig13
     move = _move(sim)
-    found = regrasp.explore_lift(start, move, planner._grasped, seed=0, max_moves=2000)
-    states, incs = regrasp.shorten(found.states, found.increments, move, planner._grasped)
+    found = regrasp.explore_lift(start, move, planning.grasped, seed=0, max_moves=2000)
+    states, incs = regrasp.shorten(found.states, found.increments, move, planning.grasped)
     assert len(states) < len(found.states)  # this walk has detours to cut
     assert states[0] is start and len(incs) == len(states) - 1
     _check_grasp(states[-1])
@@ -91,7 +93,7 @@ def test_shorten_keeps_a_chain_of_moves_that_ends_in_form_closure(fig13):
 
 def test_planner_does_not_explore_when_a_placement_lifts():
     # fig13 lifts from the paper's placement: the palm never moves.
-    plan = planner.plan_grasp("fig13", adjust=False)
+    plan = planning.plan_grasp("fig13", adjust=False)
     assert plan.success and plan.placement == "centred"
     palm = plan.steps[0].state.palm_pose
     assert all(np.array_equal(st.state.palm_pose, palm) for st in plan.steps)
@@ -101,7 +103,7 @@ def test_planner_does_not_explore_when_a_placement_lifts():
 def test_planner_lifts_tall_rectangle_by_exploring():
     # Every placement gets stuck (the object lies down); exploratory lifting from the centred
     # placement turns the palm and lifts it (docs/reproduction.md).
-    plan = planner.plan_grasp("tall_rectangle")
+    plan = planning.plan_grasp("tall_rectangle")
     assert plan.success, plan.message
     assert plan.placement == "centred, exploratory lifting"
     lifting = [st for st in plan.steps if st.phase == "lifting"]

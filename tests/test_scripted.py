@@ -220,7 +220,7 @@ def test_scripted_policy_lifts_with_palm_motion(scene, start):
 def test_scripted_policy_drives_the_palm_to_a_random_shapes_placement(seed):
     # Held-out random shapes of agents.evaluate (small: lifting with the palm where fig13 puts
     # it gets stuck); the whole planner's tipping placement has both fingers turned inward,
-    # a fingertip under the object's overhang, reached along planner.approach_path.
+    # a fingertip under the object's overhang, reached along planning.approach_path.
     start_palm = grasp_env.load_scene("fig13").initial_hand[:3]
     info, first_success, steps = _run_policy(
         "fig13", True, "scene", seed=seed, shape_randomizer=True

@@ -19,7 +19,7 @@ from grasp_env.arguments import is_real, real_vector, short
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_shape_scene
 from grasp_env.errors import SolverError
 from grasp_env.mechanics import grip_objective, is_form_closure
-from grasp_env.planner import centred_placement
+from grasp_env.planning import centred_placement
 from grasp_env.scene import Scene, load_scene
 from grasp_env.simulator import CONTACT_TOL_RANGE, SimulationError, Simulator
 from grasp_env.state import State
@@ -150,7 +150,7 @@ class FrictionlessGraspEnv(gym.Env):
 
     * ``"scene"``: at the scene's hand configuration (the paper's set-up in ``fig13``);
     * ``"preliftoff"``: the planner's centred pre-liftoff placement
-      (:func:`grasp_env.planner.centred_placement`): palm centred over the object, parallel
+      (:func:`grasp_env.planning.centred_placement`): palm centred over the object, parallel
       to the support, just high enough that the longer finger cannot touch it, fingers
       closed at equal rates (by the simulator, in steps of 0.1 rad, the first touch located
       exactly) until each finger touches the object or the fingers jam;

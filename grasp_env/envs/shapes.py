@@ -16,7 +16,7 @@ import numpy as np
 
 from grasp_env import geometry as geo
 from grasp_env.errors import SceneError
-from grasp_env.planner import centred_hand
+from grasp_env.planning import centred_hand
 from grasp_env.scene import Scene, load_scene
 
 #: Default ranges of the shape randomizer: vertex count (inclusive), size (the polygon's
@@ -90,7 +90,7 @@ def random_convex_polygon(
 
 def hand_setup(scene: Scene, object_vertices_W: np.ndarray | None = None) -> np.ndarray:
     """The paper's pre-liftoff hand placement for a scene's object at its scene placement:
-    :func:`grasp_env.planner.centred_hand` at the paper's palm height.
+    :func:`grasp_env.planning.centred_hand` at the paper's palm height.
 
     Args:
         scene: the scene (its hand and, unless given, its object).

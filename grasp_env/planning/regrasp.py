@@ -1,6 +1,6 @@
 """Exploratory lifting with palm motion, for objects the paper's fixed-palm lifting cannot lift.
 
-The paper lifts with the palm fixed, by finger increments alone (:func:`grasp_env.planner.lift`).
+The paper lifts with the palm fixed, by finger increments alone (:func:`grasp_env.planning.lift`).
 Some objects cannot be lifted that way from any placement: a tall thin rectangle under a wide
 hand tips over and lies down, out of reach of the fingertips. Lifting it takes a re-grasp with
 palm motion: the palm turns so that the object slides onto one finger's link as onto a ramp,

@@ -1,0 +1,131 @@
+"""Lifting: finger increments with the palm fixed, simulated after each, until form
+closure with the object off the support (the equal-rate squeeze while it makes progress,
+else the best of a few alternatives)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from grasp_env.planning.plan import (
+    Plan,
+    PlanStep,
+    event_note,
+    finger_gap,
+    grasped,
+    grip_if_closed,
+    palm_distance,
+    try_fingers,
+)
+from grasp_env.simulator import Simulator
+from grasp_env.state import State
+from grasp_env.width import object_width
+
+#: Lifting alternatives to the equal-rate squeeze, as multiples of the finger step
+#: ``(dq1, dq2)`` (finger 1 closes as q1 grows, finger 2 as q2 falls).
+ALTERNATIVES = (
+    (1.0, -0.5),
+    (0.5, -1.0),
+    (1.0, 0.0),
+    (0.0, -1.0),
+    (1.0, 1.0),
+    (-1.0, -1.0),
+    (0.5, 0.5),
+    (-0.5, -0.5),
+    (-0.5, 0.0),
+    (0.0, 0.5),
+)
+
+#: Squeezes in a row allowed without bringing the object closer to the palm than before.
+PATIENCE = 5
+
+#: Least decrease of the object's distance to the palm that counts as lifting progress,
+#: relative to the object's size.
+PROGRESS_TOL = 5e-3
+
+
+def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: int = 300) -> State:
+    """Lifting phase: finger increments that move the object toward the palm, until form
+    closure with the object off the support. The palm stays fixed, as in the paper.
+
+    Every step first tries the paper's squeeze, both fingers closing at equal rates by ``dq``.
+    It is taken unless it jams the hand or has not brought the object closer to the palm than
+    ever before (:func:`palm_distance`) for ``PATIENCE`` steps. Then the alternatives are
+    simulated: one finger leading or alone, both fingers turning the same way (rolling the
+    object past a fold where the squeeze wedges it), half-size increments, and a finger
+    letting go a little followed by a squeeze (out of a wedge); the best is taken; after
+    ``PATIENCE`` steps without a new record only a record is, so the phase cannot cycle. An
+    increment is refused if it drops the object (back onto the support after it left) or,
+    with the object off the support, opens the gap between the fingers (:func:`finger_gap`,
+    the fingertip distance ``d`` of section 3.2 while the fingers have not crossed) from
+    narrower than the object's width to wider (Toussaint's no-drop condition: while ``d < w``
+    it cannot drop), or if the simulator cannot follow it.
+    """
+    width = object_width(sim.scene)
+    squeeze = np.array([dq, -dq])
+    moves = [np.array(m) * dq for m in ALTERNATIVES]
+    record, since_record = palm_distance(state), 0
+    lifted = not state.on_support
+    for _ in range(max_steps):
+        if grasped(state):
+            plan.status, plan.message = "form_closure", "form closure reached"
+            return state
+
+        chosen = None
+        nxt = try_fingers(sim, state, squeeze)
+        if _admissible(nxt, state, lifted, width) and (
+            _score(nxt) < record - PROGRESS_TOL * sim.size
+            or (not nxt.jammed and since_record < PATIENCE)
+        ):
+            chosen = [nxt]
+        else:
+            best = None
+            for m in moves:
+                a = try_fingers(sim, state, m)
+                if not _admissible(a, state, lifted, width):
+                    continue
+                seq = [a]
+                if min(m[0], -m[1]) < 0 and not grasped(a):  # a release: squeeze after
+                    b = try_fingers(sim, a, squeeze)
+                    if _admissible(b, a, lifted, width) and _score(b) < _score(a):
+                        seq.append(b)
+                s = _score(seq[-1])
+                if best is None or s < best[0]:
+                    best = (s, seq)
+                    if s == -math.inf:
+                        break
+            if best is not None and (
+                best[0] < record - PROGRESS_TOL * sim.size or since_record < PATIENCE
+            ):
+                chosen = best[1]
+        if chosen is None:
+            plan.status = "stuck"
+            plan.message = "no lifting increment brings the object closer to the palm"
+            return state
+        for state in chosen:
+            lifted = lifted or not state.on_support
+            plan.steps.append(PlanStep("lifting", state, grip_if_closed(state), event_note(state)))
+        if palm_distance(state) < record - PROGRESS_TOL * sim.size:
+            record, since_record = palm_distance(state), 0
+        else:
+            since_record += 1
+    plan.status, plan.message = "stuck", f"no form closure after {max_steps} lifting steps"
+    return state
+
+
+def _admissible(nxt: State | None, prev: State, lifted: bool, width: float) -> bool:
+    """The simulator followed the increment, the hand moved, the object was not dropped, and
+    once the finger gap is narrower than the object's width with the object off the support it
+    stays so (unless the grasp closed)."""
+    if nxt is None or np.abs(nxt.hand - prev.hand).max() <= 1e-12:
+        return False
+    if (lifted or not prev.on_support) and nxt.on_support:
+        return False
+    opened = finger_gap(prev) < width <= finger_gap(nxt)
+    return grasped(nxt) or nxt.on_support or not opened
+
+
+def _score(state: State) -> float:
+    """Lifting progress measure (lower is better): the object's distance below the palm."""
+    return -math.inf if grasped(state) else palm_distance(state)

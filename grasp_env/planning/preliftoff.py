@@ -1,0 +1,216 @@
+"""Pre-liftoff (the paper's section 3.2 with 2.4): hand placements from which squeezing
+tips the object toward the palm: a fingertip at a support contact and the other finger in
+the matching tippability region (Fig. 4), or the palm centred over the object and the
+fingers closed until they touch."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from grasp_env import geometry as geo
+from grasp_env import kinematics as kin
+from grasp_env import mechanics as mech
+from grasp_env.errors import SolverError
+from grasp_env.planning.plan import touching_bodies
+from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.state import State
+from grasp_env.tippability import tippability_regions
+
+#: Gap between the hanging tip of the longer finger and the support in the centred
+#: pre-liftoff placement, in palm widths (the paper's "just high enough so that the longer
+#: finger could not touch the support").
+PALM_CLEARANCE = 0.01
+
+#: Finger step of the pre-liftoff closing motion (rad); the first touch is then located
+#: exactly from the simulator's events, so the step only changes the cost.
+PRELIFTOFF_STEP = 0.1
+
+#: Palm angles (rad) of the tipping placements, in the order lifting tries them: the paper's
+#: palm parallel to the support first, then tilted ever more (a tilted palm reaches further
+#: under objects with parallel or undercut sides).
+PALM_ANGLES = (0.0, -0.2, 0.2, -0.4, 0.4, -0.6, 0.6)
+
+
+def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray, tol: float) -> float | None:
+    """Angle at which finger ``finger`` (1 or 2), closing from its open limit with the rest of
+    the hand fixed, first touches the object; None if it never does within its limits."""
+    lo_lim, hi_lim = scene.fingers[finger - 1].limits
+    obj = geo.transform(q_obj, scene.object.vertices_B)
+
+    def depth(q: float) -> float:
+        hh = h.copy()
+        hh[2 + finger] = q
+        return geo.penetration_depth(kin.hand_polygons_W(scene, hh)[finger], obj)
+
+    # finger 1 closes as q1 increases, finger 2 as q2 decreases
+    grid = np.linspace(lo_lim, hi_lim, 91) if finger == 1 else np.linspace(hi_lim, lo_lim, 91)
+    if depth(grid[0]) > 0:
+        return None
+    for a, b in itertools.pairwise(grid):
+        if depth(b) > 0:
+            for _ in range(80):
+                m = 0.5 * (a + b)
+                if depth(m) > 0:
+                    b = m
+                else:
+                    a = m
+                if abs(b - a) < 1e-14:
+                    break
+            return a if depth(a) >= -tol else None
+    return None
+
+
+def tipping_placement(
+    sim: Simulator, palm_angles=(0.0,), n_q: int = 24, sides=("right", "left")
+) -> tuple[State, str] | None:
+    """Pre-liftoff search for the paper's Fig. 4 placement.
+
+    For each tippability region (right: finger 2's tip at the right support contact, finger 1
+    in the right region; left: the mirror), each palm angle and each angle of the holding
+    finger, the holding fingertip is put on the support contact, the other finger closes until
+    it touches, and the placement is kept if that contact lies in the region, the hand is
+    clear of the support and the object, and the joints are within limits. Among the valid
+    placements the one whose contact has the largest moment arm about the support contact
+    (the easiest to tip) is returned, with the side; None if there is none. ``sides``
+    restricts the search to some regions.
+    """
+    scene = sim.scene
+    q_obj = scene.object.start_pose.copy()
+    left, right = tippability_regions(scene)
+    tol = sim.tol
+    best = None
+    for side, region in (("right", right), ("left", left)):
+        if region.is_empty or side not in sides:
+            continue
+        hold = 2 if side == "right" else 1  # finger whose tip sits on the support contact
+        move = 3 - hold
+        p_C = region.contact_W
+        side_up = _side_direction(scene, p_C, hold)
+        lim = scene.fingers[hold - 1].limits
+        for th in palm_angles:
+            for q_hold in np.linspace(lim[0], lim[1], n_q)[1:-1]:
+                u = np.array([math.cos(th + q_hold), math.sin(th + q_hold)])
+                J = p_C - scene.fingers[hold - 1].length * u
+                jx = scene.palm.width / 2 if hold == 2 else -scene.palm.width / 2
+                o = J - geo.rotate(np.array([jx, 0.0]), th)
+                h = np.array([o[0], o[1], th, -math.pi / 2, -math.pi / 2])
+                h[2 + hold] = q_hold
+                h[2 + move] = scene.fingers[move - 1].limits[0 if move == 1 else 1]
+                # The finger's body pokes below its tip: slide the hand up the object's side.
+                low = min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h))
+                if low < 0.0:
+                    h[:2] += (-low + tol) / side_up[1] * side_up
+                q_move = _first_touch(scene, h, move, q_obj, tol)
+                if q_move is None:
+                    continue
+                h[2 + move] = q_move
+                if kin.hand_placement_problem(scene, q_obj, h, 10 * tol) is not None:
+                    continue
+                try:
+                    state = sim.settle(q_obj, h)
+                except (SimulationError, SolverError):
+                    continue
+                if np.abs(state.object_pose - q_obj).max() > 1e-9:
+                    continue
+                finger = f"finger{move}"
+                touch = [c for c in state.contacts if c.body == finger]
+                if not touch or not all(region.contains(c.point, c.normal, 1e-7) for c in touch):
+                    continue
+                arm = max(abs(float(geo.cross2(c.point - p_C, c.normal))) for c in touch)
+                if best is None or arm > best[0]:
+                    best = (arm, state, side)
+    return None if best is None else (best[1], best[2])
+
+
+def _side_direction(scene, p_C: np.ndarray, hold: int) -> np.ndarray:
+    """Unit direction up the object's side from the support contact ``p_C``: along the edge
+    that leaves ``p_C`` upwards on finger ``hold``'s side (finger 2: the right side)."""
+    v = scene.object.vertices_W0
+    k = int(np.argmin(np.linalg.norm(v - p_C, axis=1)))
+    other = v[(k + 1) % len(v)] if hold == 2 else v[k - 1]
+    d = other - v[k]
+    return d / np.linalg.norm(d)
+
+
+def centred_hand(scene, object_vertices_W: np.ndarray | None = None) -> np.ndarray:
+    """The paper's centred pre-liftoff hand: palm over the object's centroid, parallel to the
+    support, ``PALM_CLEARANCE`` palm widths above the longer finger's reach of the support
+    (higher if the object is taller), fingers hanging straight down.
+
+    Args:
+        scene: the scene (its hand and, unless given, its object).
+        object_vertices_W: the object's vertices ``(n, 2)`` in the world; default the scene's.
+
+    Returns:
+        Hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,).
+    """
+    v = scene.object.vertices_W0 if object_vertices_W is None else object_vertices_W
+    reach = max(max(f.length for f in scene.fingers), float(v[:, 1].max()))
+    q = np.clip(np.full(2, -0.5 * math.pi), scene.joint_limits[:, 0], scene.joint_limits[:, 1])
+    x = float(geo.polygon_centroid(v)[0])
+    return np.array([x, reach + PALM_CLEARANCE * scene.palm.width, 0.0, q[0], q[1]])
+
+
+def centred_placement(sim: Simulator, step: float = PRELIFTOFF_STEP) -> State:
+    """The paper's fallback pre-liftoff placement: the palm at :func:`centred_hand`, the
+    fingers closed at equal rates until each touches the object (:func:`close_until_touch`)."""
+    scene = sim.scene
+    state = sim.settle(scene.object.start_pose.copy(), centred_hand(scene))
+    return close_until_touch(sim, state, step)
+
+
+def close_until_touch(sim: Simulator, state: State, step: float = PRELIFTOFF_STEP) -> State:
+    """Close both fingers at equal rates until each has touched the object or they jam.
+
+    The fingers move in steps of ``step`` rad; a finger that touches stops there (its first
+    touch located exactly from the simulator's ``new_contact`` event) while the other closes
+    on. Stops too when both fingers are at their closing limits or the hand is blocked.
+    """
+    lim = sim.scene.joint_limits
+    closing = np.array([1.0, -1.0])  # finger 1 closes as q1 grows, finger 2 as q2 falls
+    for _ in range(int(4 * math.pi / step) + 4):
+        done = [f"finger{i + 1}" in touching_bodies(state) for i in range(2)]
+        if all(done) or state.jammed or state.hand_blocked:
+            break
+        q = state.finger_angles
+        target = q.copy()
+        for i in range(2):
+            if not done[i]:
+                target[i] = np.clip(q[i] + closing[i] * step, lim[i, 0], lim[i, 1])
+        if np.array_equal(target, q):
+            break
+        new = sim.move_hand(state, fingers=target)
+        touch = [
+            e.s
+            for e in new.events
+            if e.kind == "new_contact"
+            and any(k[0] in (geo.FINGER1, geo.FINGER2) for k in e.contacts)
+        ]
+        if touch and min(touch) < 1.0:
+            new = sim.move_hand(state, fingers=q + min(touch) * (target - q))
+        state = new
+    return state
+
+
+def squeeze_tips(sim: Simulator, state: State, dq: float = 1e-3) -> tuple[bool, list[int]]:
+    """Whether squeezing the fingers at equal rates moves the object (the velocity LP, eqs.
+    19-21, has a solution with nonzero velocity), and which support contacts break at the
+    onset (zero dual value in the force LP), as indices into ``state.contacts``."""
+    p, n, b = state.contact_arrays()
+    dh = np.array([0.0, 0.0, 0.0, dq, -dq])
+    V = mech.V_ob(p, n, state.object_pose[:2])
+    xi = mech.xi(sim.scene, state.hand, dh, b, p, n)
+    res = mech.motion_lp(V, xi, sim.scene.object_weight)
+    if res.status != "optimal":
+        return False, []
+    moves = np.abs(res.velocity).max() > 1e-9 * sim.size
+    weight = sim.scene.object_weight
+    broken = [
+        i
+        for i, (c, f) in enumerate(zip(state.contacts, res.forces, strict=True))
+        if c.body == "support" and f <= 1e-9 * weight
+    ]
+    return bool(moves), broken
