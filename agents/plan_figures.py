@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
 from grasp_env import planning
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
 from grasp_env.simulator import Simulator
 
 #: Frames of the filmstrip (the paper's Fig. 13 has 15) and its layout.

@@ -30,10 +30,10 @@ def plan_one(seed: int) -> dict:
     """Plan a grasp of random shape ``seed``; the outcome as a JSON-able dict."""
     import numpy as np
 
-    from grasp_env import mechanics as mech
     from grasp_env import planning
+    from grasp_env.core.scene import load_scene
     from grasp_env.envs.shapes import random_shape_scene
-    from grasp_env.scene import load_scene
+    from grasp_env.mechanics import closure as mech
 
     scene = random_shape_scene(np.random.default_rng(seed), load_scene("fig13"))
     plan = planning.plan_grasp(scene)

@@ -40,15 +40,19 @@ from benchmarks.work_precision import closing_motion
 
 #: ``(category, file regex, function-name regex)``; the first rule that matches wins.
 PHASES: list[tuple[str, str, str]] = [
-    ("info dict", r"frictionless_grasp\.py$|grasp_env/contacts\.py$", r"_info|as_dict"),
-    ("y* (grip objective)", r"grasp_env/mechanics\.py$", r"^grip_objective$"),
-    ("form closure test", r"grasp_env/(mechanics|fastlp)\.py$", r"form_closure"),
-    ("LP solve (fastlp / HiGHS, outside the simulator)", r"grasp_env/(fastlp|lp)\.py$", r""),
+    ("info dict", r"frictionless_grasp\.py$|grasp_env/mechanics/contacts\.py$", r"_info|as_dict"),
+    ("y* (grip objective)", r"grasp_env/mechanics/closure\.py$", r"^grip_objective$"),
+    ("form closure test", r"grasp_env/(mechanics/closure|solvers/fastlp)\.py$", r"form_closure"),
+    (
+        "LP solve (fastlp / HiGHS, outside the simulator)",
+        r"grasp_env/solvers/(fastlp|lp|simplex|motion_lp)\.py$",
+        r"",
+    ),
     ("compiled simulator (one call per move)", r"grasp_env/sim/", r""),
     ("simulator shell (arguments, State)", r"grasp_env/simulator\.py$", r""),
     (
         "placement (world poses, contact evaluate)",
-        r"grasp_env/(contacts|kinematics|geometry)\.py$",
+        r"grasp_env/(mechanics/contacts|core/kinematics|core/geometry)\.py$",
         r"",
     ),
     ("observation", r"frictionless_grasp\.py$", r"_get_obs|_in_palm_frame"),

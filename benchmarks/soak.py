@@ -77,7 +77,7 @@ BULGE_RANGE = (1e-12, 1e-9)
 def rest_on_stable_edge(v: np.ndarray) -> np.ndarray:
     """Turn a CCW polygon so that its most stable edge (the centroid projecting farthest from
     both ends) lies on ``y = 0`` as edge 0, with the centroid at ``x = 0``."""
-    from grasp_env.geometry import norms, polygon_centroid, rotate
+    from grasp_env.core.geometry import norms, polygon_centroid, rotate
 
     c = polygon_centroid(v)
     d = np.roll(v, -1, axis=0) - v
@@ -117,8 +117,8 @@ def stress_polygon(
         eps: the degeneracy's size (1e-12..1e-2 for ``"collinear"``, 1e-6..1e-2 otherwise;
             unused by the near-circle and bulge kinds).
     """
+    from grasp_env.core.geometry import norms
     from grasp_env.envs.shapes import random_convex_polygon
-    from grasp_env.geometry import norms
 
     if kind == "parallel":
         b, h = size / math.hypot(1.0, 1.0 / aspect), size / aspect / math.hypot(1.0, 1.0 / aspect)
@@ -209,7 +209,7 @@ def bulge_polygon(
 
 def polygon_centroid_x(v: np.ndarray) -> float:
     """The x of a polygon's centroid."""
-    from grasp_env.geometry import polygon_centroid
+    from grasp_env.core.geometry import polygon_centroid
 
     return float(polygon_centroid(v)[0])
 
@@ -254,8 +254,8 @@ def random_stress_scene(
     """A random :func:`stress_scene` over the full stress ranges (for the soak): a kind drawn
     from ``kinds``, 3-12 vertices, diameter 0.05-0.8 palm widths, aspect 1..``MAX_ASPECT`` and
     density over ``DENSITY_RANGE`` (both log-uniform). ``description`` holds the kind."""
+    from grasp_env.core.scene import load_scene
     from grasp_env.errors import SceneError
-    from grasp_env.scene import load_scene
 
     for _ in range(100):
         kind = str(rng.choice(kinds))

@@ -7,19 +7,18 @@ environment ``FrictionlessGrasp-v0``.
 """
 
 from grasp_env import envs as _envs  # noqa: F401  (registers FrictionlessGrasp-v0)
-from grasp_env.contacts import Contact
+from grasp_env.core.scene import Scene, bundled_scenes, load_scene
+from grasp_env.core.state import Contact, Event, State
 from grasp_env.errors import SceneError, SolverError
-from grasp_env.mechanics import (
+from grasp_env.mechanics.closure import (
     escape_direction,
     grip_objective,
     is_force_closure,
     is_form_closure,
 )
-from grasp_env.scene import Scene, bundled_scenes, load_scene
+from grasp_env.mechanics.tippability import tippability_regions
+from grasp_env.mechanics.width import object_width
 from grasp_env.simulator import SimulationError, Simulator
-from grasp_env.state import Event, State
-from grasp_env.tippability import tippability_regions
-from grasp_env.width import object_width
 
 __all__ = [
     "Contact",

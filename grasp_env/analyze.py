@@ -22,12 +22,12 @@ from typing import TextIO
 import numpy as np
 
 import grasp_env
-from grasp_env import geometry as geo
 from grasp_env.cli import HelpFormatter
+from grasp_env.core import geometry as geo
+from grasp_env.core.scene import Scene
+from grasp_env.core.state import State
 from grasp_env.errors import SceneError
-from grasp_env.scene import Scene
-from grasp_env.state import State
-from grasp_env.tippability import TippabilityRegion
+from grasp_env.mechanics.tippability import TippabilityRegion
 
 
 def _num(x: float) -> str:

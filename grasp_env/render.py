@@ -1,6 +1,6 @@
 """Off-screen pygame rendering of a grasp state, shared by the environment and the planner.
 
-:class:`Renderer` draws a :class:`~grasp_env.state.State` onto a ``pygame.Surface`` and returns
+:class:`Renderer` draws a :class:`~grasp_env.core.state.State` onto a ``pygame.Surface`` and returns
 it as an ``(H, W, 3)`` uint8 array; nothing here opens a window unless :meth:`Renderer.show`
 is called (the ``"human"`` render mode). pygame is imported lazily, inside the functions that
 need it, so ``import grasp_env`` never imports it.
@@ -8,7 +8,8 @@ need it, so ``import grasp_env`` never imports it.
 Drawing (world frame, y up):
 
 * the support: a grey band below ``y = 0``;
-* the palm and the fingers: their world polygons (:func:`grasp_env.kinematics.hand_polygons_W`);
+* the palm and the fingers: their world polygons
+(:func:`grasp_env.core.kinematics.hand_polygons_W`);
 * the object: its vertices in its frame, placed by ``state.object_pose``;
 * each contact: a red dot at its point and a green arrow from the point along its normal
   (into the object) of length ``force_scale * force / object weight`` (world units; by
@@ -33,12 +34,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
 
 if TYPE_CHECKING:
-    from grasp_env.scene import Scene
-    from grasp_env.state import State
+    from grasp_env.core.scene import Scene
+    from grasp_env.core.state import State
 
 #: Length of the arrow of a force equal to the object's weight, in palm widths.
 DEFAULT_FORCE_SCALE = 0.25

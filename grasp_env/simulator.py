@@ -9,8 +9,8 @@ as to minimise its potential energy without interpenetration (eqs. 19-24). Per i
    velocity), form the active set ``E``: by complementary slackness they stay closed.
 2. **Newton.** The active contacts' gap equations ``phi_E(q, h(s)) = 0`` (edge and tip contacts
    of the appendix, eqs. A.8, A.10, A.12, A.15, written in vector form in
-   :mod:`grasp_env.contacts`) are solved for the object pose ``q`` with Newton's method and the
-   exact Jacobian ``V_ob`` (the gap gradient; least-motion steps when ``E`` leaves freedom).
+   :mod:`grasp_env.mechanics.contacts`) are solved for the object pose ``q`` with Newton's method
+   and the exact Jacobian ``V_ob`` (the gap gradient; least-motion steps when ``E`` leaves freedom).
 3. **Consistency.** The step is accepted if no other vertex penetrates a body, no active
    contact slides off the end of its edge, and the active contacts still hold the object with
    non-negative forces. Otherwise the first event is located by bisection on ``s`` to
@@ -27,19 +27,19 @@ import math
 
 import numpy as np
 
-from grasp_env import contacts as ct
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
-from grasp_env import mechanics as mech
 from grasp_env.arguments import real_vector
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.scene import Scene, load_scene
+from grasp_env.core.state import KIND_NAMES, Contact, Event, State
 from grasp_env.errors import SimulationError, SolverError, WorkLimitError
-from grasp_env.scene import Scene, load_scene
+from grasp_env.mechanics import closure as mech
+from grasp_env.mechanics import contacts as ct
+from grasp_env.mechanics.width import object_width
 from grasp_env.sim import events as ev
 from grasp_env.sim import move
 from grasp_env.sim.equilibrium import MAX_FORCE
 from grasp_env.sim.model import Model, pack
-from grasp_env.state import Event, State
-from grasp_env.width import object_width
 
 #: Accepted ``contact_tol`` (relative to the palm width), ``[lo, hi)``: below ``lo`` the
 #: contacts' own rounding (located events, Newton's residual, flush edges) is no longer small
@@ -54,10 +54,10 @@ class Simulator:
 
     The whole of a move runs as compiled code (:mod:`grasp_env.sim.move`) on the scene's
     arrays (:class:`grasp_env.sim.model.Model`), built once here; this class checks the
-    arguments and turns the result into a :class:`~grasp_env.state.State`.
+    arguments and turns the result into a :class:`~grasp_env.core.state.State`.
 
     Args:
-        scene: a :class:`~grasp_env.scene.Scene`, bundled name, path or dict.
+        scene: a :class:`~grasp_env.core.scene.Scene`, bundled name, path or dict.
         contact_tol: gap below which bodies touch, relative to the palm width (default 1e-9,
             at least 1e-11).
             No returned state penetrates deeper; events are located to within it.
@@ -70,8 +70,8 @@ class Simulator:
         max_solves: cap on pose solves (Newton runs) per call of :meth:`move_hand` or
             :meth:`settle`, the retry included (default 5000). A move that needs more
             raises :class:`WorkLimitError`; it bounds the time of any one call.
-        lp_solver: ``"fast"`` (exact basis enumeration, :mod:`grasp_env.fastlp`) or ``"highs"``
-            (the reference path through scipy's HiGHS) for the motion LP.
+        lp_solver: ``"fast"`` (exact basis enumeration, :mod:`grasp_env.solvers.fastlp`) or
+            ``"highs"`` (the reference path through scipy's HiGHS) for the motion LP.
     """
 
     def __init__(
@@ -278,9 +278,9 @@ class Simulator:
     def _state(self, q, h, keys, rows, events, jammed=False, blocked=False) -> State:
         """A :class:`State` from the compiled :func:`grasp_env.sim.move.at_rest` output."""
         contacts = tuple(
-            ct.Contact(
+            Contact(
                 body=geo.BODY_NAMES[key[0]],
-                kind=ct.KIND_NAMES[key[1]],
+                kind=KIND_NAMES[key[1]],
                 point=row[move.ROW_POINT],
                 normal=row[move.ROW_NORMAL],
                 force=float(row[move.ROW_FORCE]),
@@ -315,7 +315,7 @@ def _piece(value) -> str:
 
 
 def _events(log: list) -> list[Event]:
-    """A compiled event log as :class:`~grasp_env.state.Event` objects."""
+    """A compiled event log as :class:`~grasp_env.core.state.Event` objects."""
     return [
         Event(ev.NAMES[kind], s, tuple(tuple(k) for k in keys.tolist())) for kind, s, keys in log
     ]

@@ -1,8 +1,8 @@
 """An independent check of a simulated state: geometry and mechanics recomputed here from
 the conventions of docs/conventions.md, sharing no code with the simulator (no
-:mod:`grasp_env.geometry`, :mod:`grasp_env.kinematics`, :mod:`grasp_env.contacts` or
-:mod:`grasp_env.sim`), the LP through scipy's HiGHS. The tests and the soak
-(``benchmarks/soak.py``) check every state they make with :func:`check_state`:
+:mod:`grasp_env.core.geometry`, :mod:`grasp_env.core.kinematics`,
+:mod:`grasp_env.mechanics.contacts` or :mod:`grasp_env.sim`), the LP through scipy's HiGHS. The
+tests and the soak (``benchmarks/soak.py``) check every state they make with :func:`check_state`:
 
 * no NaN or infinity in the poses or the contacts;
 * no penetration deeper than ``contact_tol`` between the object and the support, the palm or

@@ -2,7 +2,7 @@
 on every machine: numpy's ``@``, ``dot``, ``einsum``, ``linalg`` and scipy go through the
 machine's BLAS, whose kernels round differently from one processor (or
 ``OPENBLAS_CORETYPE``) to another. Small products are written out, and factorizations come
-from :mod:`grasp_env.sim.dense`."""
+from :mod:`grasp_env.solvers.dense`."""
 
 from __future__ import annotations
 
@@ -15,21 +15,25 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "grasp_env"
-#: Modules on the path of an env step (the analysis LPs go through scipy's HiGHS, in lp.py,
-#: which needs no BLAS).
+#: Modules on the path of an env step (the analysis LPs go through scipy's HiGHS, in
+#: solvers/lp.py, which needs no BLAS).
 SIMULATION = [
     "simulator.py",
-    "mechanics.py",
-    "contacts.py",
-    "fastlp.py",
-    "qp.py",
-    "geometry.py",
-    "kinematics.py",
-    "width.py",
-    "scene.py",
-    "state.py",
+    "arguments.py",
+    "core/geometry.py",
+    "core/kinematics.py",
+    "core/scene.py",
+    "core/state.py",
+    "mechanics/closure.py",
+    "mechanics/contacts.py",
+    "mechanics/width.py",
     "envs/shapes.py",
-    *(str(p.relative_to(PACKAGE)) for p in sorted((PACKAGE / "sim").glob("*.py"))),
+    *(
+        str(p.relative_to(PACKAGE))
+        for package in ("solvers", "sim")
+        for p in sorted((PACKAGE / package).glob("*.py"))
+        if p.name != "lp.py"
+    ),
 ]
 BLAS_NAMES = {"dot", "vdot", "inner", "matmul", "tensordot", "einsum", "linalg"}
 

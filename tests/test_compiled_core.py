@@ -10,18 +10,20 @@ from pathlib import Path
 
 import numpy as np
 
-import grasp_env.sim as sim
+from grasp_env import compiled
 
 
 def test_cache_is_used_where_it_can_be_written(tmp_path: Path) -> None:
     """The package's own folder is writable here (unless ``NUMBA_CACHE_DIR`` is set), and
     any folder numba can write to counts."""
     if "NUMBA_CACHE_DIR" not in os.environ:
-        assert sim.CACHE_FOLDER == Path(sim.__file__).parent / "__pycache__"
-    assert sim.CACHE
+        root = Path(compiled.__file__).parent
+        for name, folder in compiled.CACHE_FOLDERS.items():
+            assert folder == root / name / "__pycache__"
+    assert compiled.CACHE
     module = tmp_path / "module.py"
     module.write_text("")
-    assert sim.cache_folder(module) is not None
+    assert compiled.cache_folder(module) is not None
 
 
 def test_no_writable_cache_folder_means_compiling_in_memory() -> None:
@@ -33,8 +35,8 @@ def test_no_writable_cache_folder_means_compiling_in_memory() -> None:
     env["XDG_CACHE_HOME"] = "/proc/1/no-cache"  # numba's user-wide cache folder
     env["HOME"] = "/proc/1/no-home"
     code = (
-        "from pathlib import Path; import grasp_env.sim as sim; "
-        "print(sim.cache_folder(Path('/proc/1/no-package/module.py')))"
+        "from pathlib import Path; from grasp_env import compiled; "
+        "print(compiled.cache_folder(Path('/proc/1/no-package/module.py')))"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
@@ -94,9 +96,10 @@ def test_a_model_crosses_into_compiled_code_unchanged() -> None:
 
 def test_contact_velocities_match_the_reference() -> None:
     """The compiled ``xi`` (eq. 20) of hand-body contacts equals
-    :func:`grasp_env.mechanics.xi`, the reference, for random hand motions, points and
+    :func:`grasp_env.mechanics.closure.xi`, the reference, for random hand motions, points and
     normals, on every body (zero on the support)."""
-    from grasp_env import Simulator, mechanics
+    from grasp_env import Simulator
+    from grasp_env.mechanics import closure as mechanics
     from grasp_env.sim.hand import contact_xi
 
     sim = Simulator("fig13")
@@ -117,8 +120,9 @@ def test_contact_velocities_match_the_reference() -> None:
 
 def test_lowest_hand_point_matches_the_hand_polygons() -> None:
     """The compiled lowest hand vertex equals the lowest vertex of
-    :func:`grasp_env.kinematics.hand_polygons_W`, the reference, for random hands."""
-    from grasp_env import Simulator, kinematics
+    :func:`grasp_env.core.kinematics.hand_polygons_W`, the reference, for random hands."""
+    from grasp_env import Simulator
+    from grasp_env.core import kinematics
     from grasp_env.sim.hand import lowest_point
 
     sim = Simulator("tall_rectangle")

@@ -1,4 +1,4 @@
-"""The BLAS-free kernels of grasp_env.sim.dense against numpy's and scipy's LAPACK-backed
+"""The BLAS-free kernels of grasp_env.solvers.dense against numpy's and scipy's LAPACK-backed
 routines (the reference), on random, scaled and rank-deficient problems."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls as scipy_nnls
 
-from grasp_env.sim import dense
+from grasp_env.solvers import dense
 
 
 def problems(seed: int, count: int = 400):
@@ -110,21 +110,24 @@ def test_nnls_is_unit_free() -> None:
 
 
 def test_stale_kernel_cache_is_cleared(tmp_path) -> None:
-    """Editing any kernel module clears the package's numba cache, wherever it is (cached
-    callers would keep a callee's old code); unchanged sources keep it."""
-    from grasp_env.sim import drop_stale_cache
+    """Editing any compiled module clears the numba cache, wherever it is (cached callers
+    would keep a callee's old code); unchanged sources keep it."""
+    from grasp_env.compiled import drop_stale_cache
+
+    def sources() -> list:
+        return sorted(tmp_path.glob("*.py"))
 
     (tmp_path / "a.py").write_text("x = 1\n")
     cache = tmp_path / "elsewhere" / "cache"
     cache.mkdir(parents=True)
     (cache / "a.f-1.py311.nbi").write_text("index")
     (cache / "a.f-1.py311.1.nbc").write_text("code")
-    assert drop_stale_cache(tmp_path, cache)  # no stamp yet: whatever is there is of unknown code
+    assert drop_stale_cache(sources(), cache)  # no stamp yet: whatever is there is unknown
     assert not list(cache.glob("*.nb?"))
     (cache / "a.f-1.py311.nbi").write_text("index")
-    assert not drop_stale_cache(tmp_path, cache)
+    assert not drop_stale_cache(sources(), cache)
     assert (cache / "a.f-1.py311.nbi").exists()
     (tmp_path / "b.py").write_text("y = 2\n")
-    assert drop_stale_cache(tmp_path, cache)
+    assert drop_stale_cache(sources(), cache)
     assert not (cache / "a.f-1.py311.nbi").exists()
-    assert not drop_stale_cache(tmp_path, None)  # no cache folder: nothing to clear
+    assert not drop_stale_cache(sources(), None)  # no cache folder: nothing to clear

@@ -1,4 +1,4 @@
-"""Contact detection (:func:`grasp_env.contacts.detect`) against a brute-force detection
+"""Contact detection (:func:`grasp_env.mechanics.contacts.detect`) against a brute-force detection
 written here from the documented rules, over every vertex-edge pair of the object and the
 support, palm and fingers.
 
@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import grasp_env
-from grasp_env import contacts as ct
+from grasp_env.core.state import EDGE, TIP
+from grasp_env.mechanics import contacts as ct
 
 SCENES = ("fig13", "square", "triangle", "hexagon", "pentagon", "flat_trapezoid")
 #: Contact tolerances tried, relative to the palm width.
@@ -64,19 +65,19 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
     candidates = []  # (key, point, normal into the object)
     for k, p in enumerate(obj):
         if abs(p[1]) <= tol and valid(obj, k, (0.0, 1.0)):
-            candidates.append(((0, ct.EDGE, k, 0), p, (0.0, 1.0)))
+            candidates.append(((0, EDGE, k, 0), p, (0.0, 1.0)))
     for body in (1, 2, 3):
         poly, normals = hands[body - 1], hands_n[body - 1]
         for k, p in enumerate(obj):
             for j in range(4):
                 if on_edge(p, poly, normals, j) and valid(obj, k, normals[j]):
-                    candidates.append(((body, ct.EDGE, k, j), p, tuple(normals[j])))
+                    candidates.append(((body, EDGE, k, j), p, tuple(normals[j])))
     for body in (1, 2, 3):
         poly = hands[body - 1]
         for j, p in enumerate(poly):
             for k in range(len(obj)):
                 if on_edge(p, obj, obj_n, k) and valid(poly, j, obj_n[k]):
-                    candidates.append(((body, ct.TIP, k, j), p, (-obj_n[k][0], -obj_n[k][1])))
+                    candidates.append(((body, TIP, k, j), p, (-obj_n[k][0], -obj_n[k][1])))
     kept, out = [], []
     for key, p, n in candidates:
         if key in exclude:
@@ -165,10 +166,10 @@ def test_detect_matches_brute_force(name: str) -> None:
             exclude = set(expected[: int(rng.integers(1, len(expected) + 1))])
             released = reference(pl, tol, exclude)
             assert ct.detect(pl, tol, exclude) == released
-            seen["twin"] += any(key[1] == ct.TIP for key in set(released) - set(expected))
+            seen["twin"] += any(key[1] == TIP for key in set(released) - set(expected))
         kinds = [key[1] for key in expected]
-        seen["edge"] += ct.EDGE in kinds
-        seen["tip"] += ct.TIP in kinds
+        seen["edge"] += EDGE in kinds
+        seen["tip"] += TIP in kinds
         seen["two on a body"] += len({key[:2] for key in expected}) < len(expected)
     assert min(seen.values()) > 0, seen
 
@@ -204,10 +205,10 @@ def test_flush_edge_ending_at_a_fingertip() -> None:
     and is folded into it, until the corner's contact is released."""
     pl, tol = square_on_fingertip()
     keys = ct.detect(pl, tol)
-    assert keys == reference(pl, tol) == [(3, ct.EDGE, 1, 3), (3, ct.EDGE, 2, 3)]
-    released = ct.detect(pl, tol, exclude={(3, ct.EDGE, 1, 3)})
-    assert released == reference(pl, tol, {(3, ct.EDGE, 1, 3)})
-    assert released == [(3, ct.EDGE, 2, 3), (3, ct.TIP, 1, 0)]
+    assert keys == reference(pl, tol) == [(3, EDGE, 1, 3), (3, EDGE, 2, 3)]
+    released = ct.detect(pl, tol, exclude={(3, EDGE, 1, 3)})
+    assert released == reference(pl, tol, {(3, EDGE, 1, 3)})
+    assert released == [(3, EDGE, 2, 3), (3, TIP, 1, 0)]
 
 
 def test_keys_are_tuples_of_python_ints() -> None:

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import grasp_env
-from grasp_env import geometry as geo
+from grasp_env.core import geometry as geo
 from grasp_env.envs import ENV_ID, REWARD_THRESHOLD, WRAPPER_ENTRY_POINT
 from grasp_env.envs import frictionless_grasp as fg_module
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv, _observation_bounds
@@ -453,7 +453,7 @@ def test_random_start_is_clear_and_seeded():
         env.reset()
         state = env.state
         obj = geo.transform(state.object_pose, state.scene.object.vertices_B)
-        for poly in grasp_env.kinematics.hand_polygons_W(state.scene, state.hand):
+        for poly in grasp_env.core.kinematics.hand_polygons_W(state.scene, state.hand):
             assert geo.penetration_depth(poly, obj) <= 1e-9
             assert poly[:, 1].min() >= -1e-9
 

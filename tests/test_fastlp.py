@@ -1,4 +1,5 @@
-"""Tests of grasp_env.fastlp against HiGHS (grasp_env.lp, grasp_env.mechanics), planted optima,
+"""Tests of grasp_env.solvers.fastlp against HiGHS (grasp_env.solvers.lp,
+grasp_env.mechanics.closure), planted optima,
 KKT conditions, Farkas certificates and convex hulls.
 
 The velocity LP ``min c^T v s.t. V v >= xi`` (eqs. 19-21) and the force LP ``max xi^T lam s.t.
@@ -16,10 +17,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull, QhullError
 
-from grasp_env import lp
-from grasp_env import mechanics as mech
 from grasp_env.errors import SolverError
-from grasp_env.fastlp import FastLPResult, form_closure_fast, solve_velocity_lp
+from grasp_env.mechanics import closure as mech
+from grasp_env.solvers import lp
+from grasp_env.solvers.fastlp import FastLPResult, form_closure_fast, solve_velocity_lp
+from grasp_env.solvers.motion_lp import force_lp
 
 TOL = 1e-9
 WEIGHT = 9.81
@@ -91,7 +93,8 @@ def feasibility(V: np.ndarray, xi: np.ndarray) -> lp.LPResult:
 
 
 def reference(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> lp.LPResult:
-    """The reference path: the velocity LP through HiGHS (``grasp_env.lp.velocity_lp`` for gravity).
+    """The reference path: the velocity LP through HiGHS (``grasp_env.solvers.lp.velocity_lp`` for
+    gravity).
 
     HiGHS's presolve labels some feasible, unbounded velocity LPs "infeasible" and fails on
     others (scipy 1.17, see ``test_highs_trouble``), so an infeasible verdict is confirmed by
@@ -127,7 +130,7 @@ def assert_matches_reference(
         assert res.value == pytest.approx(ref.value, abs=value_tol * scale)
         if np.array_equal(c, GRAVITY_COST) and len(V):
             # The force LP's optimum is minus the value of its minimisation.
-            force = -mech.force_lp(V, xi, WEIGHT).value
+            force = -force_lp(V, xi, WEIGHT).value
             assert force == pytest.approx(res.value, abs=value_tol * scale)
     return res
 

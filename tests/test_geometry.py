@@ -1,7 +1,7 @@
-"""The lowest layers on their own: :mod:`grasp_env.geometry` against closed forms and
-brute force, :mod:`grasp_env.kinematics` against the independent polygons of
+"""The lowest layers on their own: :mod:`grasp_env.core.geometry` against closed forms and
+brute force, :mod:`grasp_env.core.kinematics` against the independent polygons of
 :mod:`grasp_env.testing` and finite differences, and contact evaluation and detection of
-:mod:`grasp_env.contacts` on set-ups whose contacts are known by construction."""
+:mod:`grasp_env.mechanics.contacts` on set-ups whose contacts are known by construction."""
 
 from __future__ import annotations
 
@@ -11,11 +11,12 @@ import math
 import numpy as np
 import pytest
 
-from grasp_env import contacts as ct
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
 from grasp_env import testing
-from grasp_env.scene import load_scene
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.scene import load_scene
+from grasp_env.core.state import EDGE, TIP
+from grasp_env.mechanics import contacts as ct
 
 
 def regular_polygon(n: int, radius: float, phase: float = 0.3) -> np.ndarray:
@@ -196,7 +197,7 @@ def test_resting_object_has_its_bottom_edge_on_the_support() -> None:
         tol = 1e-9 * scene.palm.width
         keys = ct.detect(pl, tol)
         bottom = np.flatnonzero(np.abs(scene.object.vertices_W0[:, 1]) <= tol)
-        assert sorted(keys) == [(geo.SUPPORT, ct.EDGE, int(k), 0) for k in bottom]
+        assert sorted(keys) == [(geo.SUPPORT, EDGE, int(k), 0) for k in bottom]
         for key in keys:
             p, n, gap, _, _ = pl.evaluate(key)
             np.testing.assert_allclose(p, scene.object.vertices_W0[key[2]], atol=1e-12)
@@ -221,7 +222,7 @@ def test_fingertip_on_an_object_edge_at_a_set_gap() -> None:
         h = h0.copy()
         h[:2] += target - kin.fingertips_W(scene, h0)[1]  # the palm puts the tip there
         pl = ct.Placement(scene, scene.object.start_pose.copy(), h)
-        key = (geo.FINGER2, ct.TIP, k, geo.fingertip_index(2))
+        key = (geo.FINGER2, TIP, k, geo.fingertip_index(2))
         p, n, g, t, length = pl.evaluate(key)
         np.testing.assert_allclose(p, target, atol=1e-12)
         np.testing.assert_allclose(n, -normal_out, atol=1e-12)

@@ -33,9 +33,9 @@ import yaml
 
 import grasp_env
 from grasp_env import Simulator, testing
-from grasp_env import mechanics as mech
-from grasp_env import scene as scene_mod
+from grasp_env.core import scene as scene_mod
 from grasp_env.errors import SceneError
+from grasp_env.mechanics import closure as mech
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 

@@ -1,4 +1,4 @@
-"""Tests of grasp_env.mechanics and grasp_env.qp against independent computations.
+"""Tests of grasp_env.mechanics.closure and grasp_env.solvers.qp against independent computations.
 
 Every oracle here is written from the paper (sections 2.1-2.5, 3.2) and docs/conventions.md,
 not from the library: gaps are differentiated numerically, hand points are moved with a
@@ -23,11 +23,11 @@ from scipy.optimize import linprog, lsq_linear, minimize, nnls
 from scipy.spatial import ConvexHull, QhullError
 
 import grasp_env
-from grasp_env import lp, qp
-from grasp_env import mechanics as mech
-from grasp_env.contacts import Contact
+from grasp_env.core.state import Contact, State
 from grasp_env.errors import SolverError
-from grasp_env.state import State
+from grasp_env.mechanics import closure as mech
+from grasp_env.solvers import lp, qp
+from grasp_env.solvers.motion_lp import force_lp
 
 BODIES = ("support", "palm", "finger1", "finger2")
 SCENE = grasp_env.load_scene("square")
@@ -267,7 +267,7 @@ def test_velocity_and_force_lp_are_dual(data, weight):
         # test_velocity_lp_resolves_unbounded_or_infeasible below.
         assert exc.status == "highs_4"
         reject()
-    frc = mech.force_lp(V, xi, weight)
+    frc = force_lp(V, xi, weight)
     scale = 1.0 + weight
     if vel.status == "optimal":
         assert frc.status == "optimal"

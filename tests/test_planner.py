@@ -10,9 +10,9 @@ import pytest
 from scipy.optimize import linprog
 
 import grasp_env
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
 from grasp_env import planning
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
 from grasp_env.envs.shapes import random_shape_scene
 
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]

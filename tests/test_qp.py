@@ -1,4 +1,4 @@
-"""The least-norm QP (:func:`grasp_env.qp.least_norm`) against scipy's SLSQP and an
+"""The least-norm QP (:func:`grasp_env.solvers.qp.least_norm`) against scipy's SLSQP and an
 independent KKT check, on random feasible problems, on degenerate ones (dependent and
 repeated rows, more active rows than variables) and on infeasible ones (Farkas
 certificates, inconsistent equalities)."""
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear, minimize
 
-from grasp_env import qp
 from grasp_env.errors import SolverError
+from grasp_env.solvers import qp
 
 NONE = (np.zeros((0, 3)), np.zeros(0))
 

@@ -19,7 +19,7 @@ import pytest
 from image_checks import ink_runs
 
 import grasp_env
-from grasp_env import geometry as geo
+from grasp_env.core import geometry as geo
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.render import (
     BACKGROUND,
@@ -88,7 +88,7 @@ def test_world_to_pixel_map_is_y_up_and_isotropic(grasped_state):
 def test_scene_bounds_contain_hand_and_object():
     scene = grasp_env.load_scene("fig13")
     x0, x1, y0, y1 = scene_bounds(scene)
-    for poly in grasp_env.kinematics.hand_polygons_W(scene, scene.initial_hand):
+    for poly in grasp_env.core.kinematics.hand_polygons_W(scene, scene.initial_hand):
         assert poly[:, 0].min() > x0 and poly[:, 0].max() < x1
         assert poly[:, 1].min() >= y0 and poly[:, 1].max() < y1
     v = scene.object.vertices_W0
@@ -101,7 +101,7 @@ def test_workspace_bounds_cover_the_fingers_closing_range():
     h = scene.initial_hand.copy()
     for q in np.linspace(-np.pi / 2, 0.0, 9):  # finger 1 closing, finger 2 mirrored
         h[3:] = (q, -np.pi - q)
-        for poly in grasp_env.kinematics.hand_polygons_W(scene, h):
+        for poly in grasp_env.core.kinematics.hand_polygons_W(scene, h):
             assert poly[:, 0].min() > x0 and poly[:, 0].max() < x1
             assert poly[:, 1].min() > y0 and poly[:, 1].max() < y1
     # Tighter than the fingers' whole range (which reaches out to the palm's level).
@@ -153,7 +153,7 @@ def test_view_refits_when_a_body_leaves_it(grasped_state):
     renderer.close()
     x0, x1, y0, y1 = renderer.view()
     assert renderer.view() != view
-    for poly in grasp_env.kinematics.hand_polygons_W(scene, moved.hand):
+    for poly in grasp_env.core.kinematics.hand_polygons_W(scene, moved.hand):
         assert x0 <= poly[:, 0].min() and poly[:, 0].max() <= x1
         assert y0 <= poly[:, 1].min() and poly[:, 1].max() <= y1
 

@@ -1,7 +1,7 @@
-"""Tests of :mod:`grasp_env.scene`: the bundled scenes, the paper's section-4 set-up, mass
+"""Tests of :mod:`grasp_env.core.scene`: the bundled scenes, the paper's section-4 set-up, mass
 properties against independent computations, and refusal of malformed scenes.
 
-Every geometric quantity is recomputed here without :mod:`grasp_env.geometry`: areas and
+Every geometric quantity is recomputed here without :mod:`grasp_env.core.geometry`: areas and
 centroids by a triangle fan from vertex 0, the object width by projecting on many
 directions, inertias by numerical integration (row slicing and a 2-D midpoint grid) and by
 closed forms for rectangles and triangles.
@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 import yaml
 
-from grasp_env import scene as scene_mod
+from grasp_env.core import scene as scene_mod
+from grasp_env.core.scene import Scene, bundled_scenes, load_scene, scene_from_dict
 from grasp_env.errors import SceneError
-from grasp_env.scene import Scene, bundled_scenes, load_scene, scene_from_dict
 
 SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
 SCENE_FILES = sorted(p.stem for p in SCENES_DIR.glob("*.yaml"))
@@ -49,7 +49,7 @@ def raw_scene(name: str) -> dict[str, Any]:
 
 
 # ---------------------------------------------------------------------------------------
-# Independent geometry (no grasp_env.geometry)
+# Independent geometry (no grasp_env.core.geometry)
 # ---------------------------------------------------------------------------------------
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from grasp_env import simplex
+from grasp_env.solvers import simplex
 
 
 def random_lp(rng: np.random.Generator):

@@ -3,7 +3,7 @@
 Nothing here is checked against the simulator's own earlier output. Every returned state is
 checked by :func:`assert_invariants` with :func:`grasp_env.testing.check_state`, which
 rebuilds the world polygons of the object and of the hand from the conventions of
-docs/conventions.md (not from :mod:`grasp_env.kinematics` or :mod:`grasp_env.geometry`),
+docs/conventions.md (not from :mod:`grasp_env.core.kinematics` or :mod:`grasp_env.core.geometry`),
 measures penetration with its own separating-axis test, re-derives every contact's gap from
 its point and normal, checks that every touching vertex-body pair is listed, sums the contact
 forces for the object's equilibrium and solves the velocity LP ``min m g v_y s.t. V_ob v >=
@@ -1212,7 +1212,7 @@ def test_failed_fast_lp_retries_on_reference_path() -> None:
         import math
         from grasp_env import Simulator
         from grasp_env.errors import SolverError
-        from grasp_env.sim import velocity_lp
+        from grasp_env.solvers import velocity_lp
         calls = 0
         def failing(*args):
             global calls
@@ -1238,8 +1238,8 @@ def test_failed_fast_lp_retries_on_reference_path() -> None:
 def test_retry_result_is_valid(monkeypatch: pytest.MonkeyPatch) -> None:
     """A move retried on the reference path returns a valid state: here the first attempt
     fails on the reference LP (injected once) and the retry completes."""
-    from grasp_env import lp
     from grasp_env.errors import SolverError
+    from grasp_env.solvers import lp
 
     real = lp.velocity_lp
     calls = {"n": 0}
@@ -1261,8 +1261,8 @@ def test_retry_result_is_valid(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_failed_retry_raises_simulation_error(monkeypatch: pytest.MonkeyPatch) -> None:
     """If the reference path fails too, the move raises SimulationError naming both causes
     (here the reference LP fails, which both attempts of a reference-path simulator use)."""
-    from grasp_env import lp
     from grasp_env.errors import SolverError
+    from grasp_env.solvers import lp
 
     def broken(V, xi, weight):
         raise SolverError("injected", "highs path down")
@@ -1308,7 +1308,7 @@ def test_no_contacts_never_reach_scipy_nnls() -> None:
     """Regression (soak seed 4, shape 52): with no contacts at all the hold test used to
     call scipy's nnls on a 3x0 matrix, which aborts the whole process in scipy 1.17
     ("double free"). No contacts hold nothing: the residual is the whole weight."""
-    from grasp_env.sim.dense import nnls
+    from grasp_env.solvers.dense import nnls
 
     lam, res = nnls(np.zeros((3, 0)), np.array([0.0, 2.5, 0.0]))
     assert lam.shape == (0,) and res == pytest.approx(2.5)

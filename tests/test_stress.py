@@ -362,8 +362,8 @@ def test_fast_lp_failure_falls_back_to_reference(monkeypatch: pytest.MonkeyPatch
     """When the fast LP cannot decide (injected: it always raises SolverError), the motion LP
     is solved on the reference path (HiGHS): the fig13 closing motion is the same as with
     ``lp_solver="highs"`` and every state is valid."""
-    from grasp_env import fastlp
     from grasp_env.errors import SolverError
+    from grasp_env.solvers import fastlp
 
     reference = _closing_run(Simulator("fig13", lp_solver="highs"))
 
@@ -384,8 +384,8 @@ def test_env_reports_solver_failure_as_sim_error(monkeypatch: pytest.MonkeyPatch
     for the failing step, and which its retry uses too): ``step`` must not raise; it ends the
     episode with ``info["sim_error"]`` naming the failure and leaves the state as it was;
     once the solver works again, ``reset`` and ``step`` work."""
-    from grasp_env import lp
     from grasp_env.errors import SolverError
+    from grasp_env.solvers import lp
 
     env = FrictionlessGraspEnv("fig13", palm_control=True)
     first, _ = env.reset(seed=0)

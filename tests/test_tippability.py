@@ -1,4 +1,5 @@
-"""Tests of grasp_env.tippability against statics computed independently of the ray construction.
+"""Tests of grasp_env.mechanics.tippability against statics computed independently of the ray
+construction.
 
 The oracle: for a finger contact (p, n) the object is loaded by gravity, the finger force
 c n, the two vertical support forces c_L, c_R at the ends of the supporting edge, and the
@@ -19,9 +20,9 @@ from hypothesis import strategies as st
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
-from grasp_env import geometry as geo
-from grasp_env.scene import scene_from_dict
-from grasp_env.tippability import support_contacts, tippability_regions
+from grasp_env.core import geometry as geo
+from grasp_env.core.scene import scene_from_dict
+from grasp_env.mechanics.tippability import support_contacts, tippability_regions
 
 # ----------------------------------------------------------------------------------------
 # Independent helpers: polygons, admissible contacts and the statics oracle

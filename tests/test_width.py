@@ -1,4 +1,5 @@
-"""Tests of grasp_env.width against a direction sweep and closed-form widths (section 3.2)."""
+"""Tests of grasp_env.mechanics.width against a direction sweep and closed-form widths
+(section 3.2)."""
 
 from __future__ import annotations
 
@@ -11,9 +12,9 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 from scipy.spatial import ConvexHull, QhullError
 
-from grasp_env import geometry as geo
-from grasp_env.scene import scene_from_dict
-from grasp_env.width import object_width, width_direction
+from grasp_env.core import geometry as geo
+from grasp_env.core.scene import scene_from_dict
+from grasp_env.mechanics.width import object_width, width_direction
 
 
 def extent(v: np.ndarray, theta: np.ndarray | float) -> np.ndarray:

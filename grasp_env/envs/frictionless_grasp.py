@@ -13,16 +13,16 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
 from grasp_env.arguments import is_real, real_vector, short
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.scene import Scene, load_scene
+from grasp_env.core.state import State
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_shape_scene
 from grasp_env.errors import SolverError
-from grasp_env.mechanics import grip_objective, is_form_closure
+from grasp_env.mechanics.closure import grip_objective, is_form_closure
 from grasp_env.planning import centred_placement
-from grasp_env.scene import Scene, load_scene
 from grasp_env.simulator import CONTACT_TOL_RANGE, SimulationError, Simulator
-from grasp_env.state import State
 
 # Workspace and observation ranges, in palm widths (lengths) and radians, about the object's
 # scene position ``x0`` (x) and the support (y).

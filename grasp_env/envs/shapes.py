@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from grasp_env import geometry as geo
+from grasp_env.core import geometry as geo
+from grasp_env.core.scene import Scene, load_scene
 from grasp_env.errors import SceneError
 from grasp_env.planning import centred_hand
-from grasp_env.scene import Scene, load_scene
 
 #: Default ranges of the shape randomizer: vertex count (inclusive), size (the polygon's
 #: diameter, i.e. its largest vertex-to-vertex distance, in palm widths), aspect ratio of the

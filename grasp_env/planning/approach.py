@@ -8,11 +8,11 @@ import math
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.state import State
 from grasp_env.errors import SolverError
 from grasp_env.simulator import SimulationError, Simulator
-from grasp_env.state import State
 
 #: Finger openings (rad) from the placement's finger angles tried by :func:`approach_path`
 #: for the final descent, and the margin (palm widths) it keeps from the object in transit.

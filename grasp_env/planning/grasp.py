@@ -10,7 +10,9 @@ import time
 
 import numpy as np
 
+from grasp_env.core.state import State
 from grasp_env.errors import SolverError
+from grasp_env.mechanics.tippability import tippability_regions
 from grasp_env.planning import regrasp
 from grasp_env.planning.grip import adjust_grip
 from grasp_env.planning.lifting import lift
@@ -22,8 +24,6 @@ from grasp_env.planning.preliftoff import (
     tipping_placement,
 )
 from grasp_env.simulator import SimulationError, Simulator
-from grasp_env.state import State
-from grasp_env.tippability import tippability_regions
 
 #: Progress of a plan (placements tried, exploration, grip adjustment) at INFO level.
 log = logging.getLogger(__name__)

@@ -8,10 +8,11 @@ import math
 
 import numpy as np
 
-from grasp_env import contacts as ct
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
-from grasp_env import mechanics as mech
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.state import KIND_NAMES, Contact, State
+from grasp_env.mechanics import closure as mech
+from grasp_env.mechanics import contacts as ct
 from grasp_env.planning.plan import (
     BranchProbe,
     Plan,
@@ -22,7 +23,6 @@ from grasp_env.planning.plan import (
     try_move,
 )
 from grasp_env.simulator import Simulator
-from grasp_env.state import State
 
 
 class FourContactBranch:
@@ -90,9 +90,9 @@ class FourContactBranch:
             if np.isfinite(L) and (t < -sim.tol / L or t > 1 + sim.tol / L):
                 return None
             contacts.append(
-                ct.Contact(
+                Contact(
                     geo.BODY_NAMES[key[0]],
-                    ct.KIND_NAMES[key[1]],
+                    KIND_NAMES[key[1]],
                     p.copy(),
                     n.copy(),
                     0.0,

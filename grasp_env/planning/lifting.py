@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 
+from grasp_env.core.state import State
+from grasp_env.mechanics.width import object_width
 from grasp_env.planning.plan import (
     Plan,
     PlanStep,
@@ -19,8 +21,6 @@ from grasp_env.planning.plan import (
     try_fingers,
 )
 from grasp_env.simulator import Simulator
-from grasp_env.state import State
-from grasp_env.width import object_width
 
 #: Lifting alternatives to the equal-rate squeeze, as multiples of the finger step
 #: ``(dq1, dq2)`` (finger 1 closes as q1 grows, finger 2 as q2 falls).

@@ -9,12 +9,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
-from grasp_env import mechanics as mech
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.state import State
 from grasp_env.errors import SolverError
+from grasp_env.mechanics import closure as mech
 from grasp_env.simulator import SimulationError, Simulator
-from grasp_env.state import State
 
 PHASES = ("pre-liftoff", "lifting", "grip adjustment")
 

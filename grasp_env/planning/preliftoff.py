@@ -10,14 +10,15 @@ import math
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
-from grasp_env import mechanics as mech
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.state import State
 from grasp_env.errors import SolverError
+from grasp_env.mechanics import closure as mech
+from grasp_env.mechanics.tippability import tippability_regions
 from grasp_env.planning.plan import touching_bodies
 from grasp_env.simulator import SimulationError, Simulator
-from grasp_env.state import State
-from grasp_env.tippability import tippability_regions
+from grasp_env.solvers.motion_lp import motion_lp
 
 #: Gap between the hanging tip of the longer finger and the support in the centred
 #: pre-liftoff placement, in palm widths (the paper's "just high enough so that the longer
@@ -203,7 +204,7 @@ def squeeze_tips(sim: Simulator, state: State, dq: float = 1e-3) -> tuple[bool, 
     dh = np.array([0.0, 0.0, 0.0, dq, -dq])
     V = mech.V_ob(p, n, state.object_pose[:2])
     xi = mech.xi(sim.scene, state.hand, dh, b, p, n)
-    res = mech.motion_lp(V, xi, sim.scene.object_weight)
+    res = motion_lp(V, xi, sim.scene.object_weight)
     if res.status != "optimal":
         return False, []
     moves = np.abs(res.velocity).max() > 1e-9 * sim.size

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env.state import State
+from grasp_env.core import geometry as geo
+from grasp_env.core.state import State
 
 #: A hand move: the state reached from ``state`` by the hand increment ``dh`` (shape (5,)),
 #: or None when it is refused (the simulator cannot follow it, or the caller's rules).

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 from grasp_env.sim.placement import EDGE, SUPPORT, TIP
 
 

@@ -14,9 +14,11 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE, clearance, dense
+from grasp_env.compiled import CACHE
+from grasp_env.sim import clearance
 from grasp_env.sim.placement import EDGE, contact_rows
 from grasp_env.sim.pose import constraint_matrix, independent_forces
+from grasp_env.solvers import dense
 
 
 @njit(cache=CACHE)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
 
 NONE = np.full(4, -1, dtype=np.int64)

@@ -43,7 +43,7 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 from grasp_env.sim.clearance import near_bodies
 from grasp_env.sim.placement import EDGE, SUPPORT, TIP
 

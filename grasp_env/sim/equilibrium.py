@@ -9,11 +9,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE, contact_sets, dense
+from grasp_env.compiled import CACHE
+from grasp_env.sim import contact_sets
 from grasp_env.sim.motion import motion_lp
 from grasp_env.sim.placement import contact_rows
 from grasp_env.sim.pose import constraint_matrix, independent_forces
-from grasp_env.sim.velocity_lp import OPTIMAL
+from grasp_env.solvers import dense
+from grasp_env.solvers.velocity_lp import OPTIMAL
 
 #: Largest contact force, in object weights, that counts as holding the object.
 MAX_FORCE = 1e6

@@ -7,7 +7,7 @@ happened and the contacts involved (an array (k, 4)).
 
 from __future__ import annotations
 
-#: Events of a move (:class:`grasp_env.state.Event` kinds, in :data:`NAMES`' order).
+#: Events of a move (:class:`grasp_env.core.state.Event` kinds, in :data:`NAMES`' order).
 NEW_CONTACT, EDGE_TO_TIP, TIP_TO_EDGE, LOST_CONTACT, FALL_START, FALL_END, JAM = range(7)
 #: Checks that are not events themselves: a hand body overlapping the object (edges about to
 #: cross: a new contact), the residual of the active set's equilibrium, nothing checked.

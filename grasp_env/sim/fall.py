@@ -15,13 +15,15 @@ import math
 import numpy as np
 from numba import njit
 
+from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
-from grasp_env.sim import CACHE, contact_sets, dense, detection, least_norm
+from grasp_env.sim import contact_sets, detection
 from grasp_env.sim.equilibrium import MAX_FORCE, held
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
 from grasp_env.sim.pose import constraint_matrix
 from grasp_env.sim.step import geometry_violation, newton, newton_held
+from grasp_env.solvers import dense, least_norm
 
 #: Halvings of a fall step that lowers nothing before it counts as no way down.
 HALVINGS = 50

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 from grasp_env.sim.placement import SUPPORT
 
 #: Points of the scan that brackets the first support crossing of a move.

@@ -28,8 +28,9 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
-from grasp_env.sim import CACHE, contact_sets, motion
+from grasp_env.sim import contact_sets, motion
 from grasp_env.sim.equilibrium import determined, held
 from grasp_env.sim.events import (
     EDGE_TO_TIP,

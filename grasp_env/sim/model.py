@@ -12,7 +12,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 
 #: Fields of :class:`Model`, with what they hold.
 FIELDS = {

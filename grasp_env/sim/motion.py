@@ -2,10 +2,10 @@
 (section 3.1, eqs. 19-24).
 
 The velocity LP ``min W v_y s.t. V v >= xi`` and its dual, the force LP, give the object
-twist and the contact forces (:mod:`grasp_env.sim.velocity_lp`, or HiGHS on the reference
+twist and the contact forces (:mod:`grasp_env.solvers.velocity_lp`, or HiGHS on the reference
 path). The contacts with positive force, and the touching ones the hand pushes on, form the
 active set ``E``; of the optimal twists the least-motion one is kept
-(:mod:`grasp_env.sim.least_norm`).
+(:mod:`grasp_env.solvers.least_norm`).
 """
 
 from __future__ import annotations
@@ -13,11 +13,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, objmode
 
-from grasp_env import lp
-from grasp_env.sim import CACHE, contact_sets, dense, least_norm, velocity_lp
+from grasp_env.compiled import CACHE
+from grasp_env.sim import contact_sets
 from grasp_env.sim.hand import contact_xi
 from grasp_env.sim.placement import contact_rows
 from grasp_env.sim.pose import constraint_matrix
+from grasp_env.solvers import dense, least_norm, lp, velocity_lp
 
 #: Outcomes of a plan: the object moves with the hand, the hand cannot move on, the object
 #: falls.
@@ -25,8 +26,8 @@ MOVE, JAM, FALL = 0, 1, 2
 
 
 def reference_motion_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> tuple:
-    """The motion LP through HiGHS (:func:`grasp_env.lp.velocity_lp`, whose duals are the
-    contact forces), as ``(status, v, lam, value)`` with :mod:`grasp_env.sim.velocity_lp`'s
+    """The motion LP through HiGHS (:func:`grasp_env.solvers.lp.velocity_lp`, whose duals are the
+    contact forces), as ``(status, v, lam, value)`` with :mod:`grasp_env.solvers.velocity_lp`'s
     status codes."""
     res = lp.velocity_lp(V, xi, weight)
     if res.status == "optimal":
@@ -40,7 +41,7 @@ def motion_lp(model, V: np.ndarray, xi: np.ndarray) -> tuple[int, np.ndarray, np
     """``min W v_y s.t. V v >= xi`` and its dual: ``(status, v, lam, value)``. The exact basis
     enumeration; where it cannot decide at its tolerance, again with the looser dual
     tolerance of a cost on the boundary of equilibrium (a force just reaching zero,
-    :data:`grasp_env.sim.velocity_lp.BOUNDARY_TOL`); HiGHS on the reference path and where
+    :data:`grasp_env.solvers.velocity_lp.BOUNDARY_TOL`); HiGHS on the reference path and where
     that cannot decide either."""
     if not model.reference_lp:
         cost = np.array([0.0, model.weight, 0.0])

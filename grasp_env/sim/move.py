@@ -14,8 +14,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError
-from grasp_env.sim import CACHE, contact_sets
+from grasp_env.sim import contact_sets
 from grasp_env.sim.clearance import separation
 from grasp_env.sim.equilibrium import rest_forces
 from grasp_env.sim.events import NO_CHECK

@@ -1,12 +1,12 @@
 """World geometry of every body, and the gaps of contacts, for an object pose and a hand.
 
 The scene's bodies are stacked once into one array of body-frame points (see
-:class:`grasp_env.contacts.Placement`): the object's vertices, the palm's, finger 1's and
+:class:`grasp_env.mechanics.contacts.Placement`): the object's vertices, the palm's, finger 1's and
 finger 2's (4 each), then the same bodies' outward edge normals; ``body`` gives each row's
 body (0 object, 1 palm, 2 finger 1, 3 finger 2). One rotation per body places them all.
 
 A contact is a row ``(body, kind, object_feature, hand_feature)`` of an int array ``keys``
-(:mod:`grasp_env.contacts` explains the two kinds); its normal points into the object and
+(:mod:`grasp_env.mechanics.contacts` explains the two kinds); its normal points into the object and
 its gap is positive when the bodies are apart.
 """
 
@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 
 SUPPORT = 0
 EDGE, TIP = 0, 1

@@ -13,8 +13,9 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE, dense
+from grasp_env.compiled import CACHE
 from grasp_env.sim.placement import TIP, contact_rows, world_points
+from grasp_env.solvers import dense
 
 #: Newton iterations before a solve counts as failed.
 ITERATIONS = 30

@@ -18,8 +18,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from grasp_env.compiled import CACHE
 from grasp_env.errors import WorkLimitError
-from grasp_env.sim import CACHE, clearance, consistency, contact_sets, pose
+from grasp_env.sim import clearance, consistency, contact_sets, pose
 from grasp_env.sim.contact_sets import NONE
 from grasp_env.sim.events import (
     EDGE_TO_TIP,

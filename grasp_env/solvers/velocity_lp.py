@@ -7,8 +7,8 @@ and the form-closure test, compiled with numba::
 Farkas support (r + 1 rows) and every extreme ray (r - 1 rows), visiting the row subsets in
 lexicographic order; of equally good candidates the first is kept. The method, the
 tolerances below and the choice among optimal bases are documented in
-:mod:`grasp_env.fastlp`, which wraps these kernels. Plain arithmetic in a fixed order
-(:mod:`grasp_env.sim.dense`): no BLAS, the same bits on every machine.
+:mod:`grasp_env.solvers.fastlp`, which wraps these kernels. Plain arithmetic in a fixed order
+(:mod:`grasp_env.solvers.dense`): no BLAS, the same bits on every machine.
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE, dense
+from grasp_env.compiled import CACHE
+from grasp_env.solvers import dense
 
 RANK_TOL = 1e-10
 """Unit-row determinant (volume) an r-subset must exceed for ``rank V >= r``."""
@@ -27,7 +28,7 @@ SINGULAR_TOL = 1e-13
 """Unit-row determinant below which a row subset is not tried as a basis."""
 
 FEAS_TOL = 1e-9
-"""Relative feasibility, sign and certificate tolerance (see :mod:`grasp_env.fastlp`)."""
+"""Relative feasibility, sign and certificate tolerance (see :mod:`grasp_env.solvers.fastlp`)."""
 
 BOUNDARY_TOL = 1e-6
 """A looser dual tolerance for a problem :data:`UNDECIDED` at :data:`FEAS_TOL`: the cost
@@ -180,7 +181,7 @@ def _optimal_basis(
     times their sum count as non-negative.
 
     Tests ``|det|``-scaled quantities (``lam_B |det|``, ``u |det|``), whose rounding errors
-    are a few ulps of ``|c|`` and ``|xi|_inf``; see :mod:`grasp_env.fastlp` for the
+    are a few ulps of ``|c|`` and ``|xi|_inf``; see :mod:`grasp_env.solvers.fastlp` for the
     tolerances, the refinement and the refit of a slightly negative multiplier.
     """
     n, r = W.shape
@@ -538,7 +539,7 @@ def form_closure(V: np.ndarray) -> bool:
 
     No extreme ray ``+-(V_i x V_j)`` of an independent pair of unit rows (``|V_i x V_j| >
     RANK_TOL``) is admissible to ``V_k d >= -FEAS_TOL``, and some pair is independent; see
-    :func:`grasp_env.fastlp.form_closure_fast`.
+    :func:`grasp_env.solvers.fastlp.form_closure_fast`.
     """
     n = V.shape[0]
     U = np.empty((n, 3))

@@ -1,4 +1,17 @@
-"""Simulation state: immutable snapshots of the object pose, hand configuration and contacts."""
+"""Simulation state: immutable snapshots of the object pose, hand configuration and contacts.
+
+A contact is a vertex of one body on an edge of another (docs/conventions.md, "Contacts"). It
+is identified by a key ``(body, kind, object_feature, hand_feature)``:
+
+* kind ``EDGE`` (``"edge"``): object vertex ``object_feature`` on edge ``hand_feature`` of the
+  hand body (for the support, the line y = 0, ``hand_feature = 0``); the contact point is fixed
+  in the object frame and the normal is the hand edge's outward normal.
+* kind ``TIP`` (``"tip"``): hand vertex ``hand_feature`` (usually a fingertip) on object edge
+  ``object_feature`` (from vertex k to k+1); the point is fixed in the hand body's frame and the
+  normal is the object edge's inward normal.
+
+Normals always point into the object; gaps are positive when the bodies are apart.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +19,58 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from grasp_env.contacts import Contact
-from grasp_env.geometry import BODY_NAMES
-from grasp_env.scene import Scene
+from grasp_env.core.geometry import BODY_NAMES
+from grasp_env.core.scene import Scene
+
+EDGE, TIP = 0, 1
+KIND_NAMES = ("edge", "tip")
+
+#: Key of a contact: (body, kind, object_feature, hand_feature).
+ContactKey = tuple[int, int, int, int]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A contact of a returned state (public API, docs/conventions.md).
+
+    Attributes:
+        body: ``"support"``, ``"palm"``, ``"finger1"`` or ``"finger2"``.
+        kind: ``"edge"`` (object vertex on a hand edge) or ``"tip"`` (hand vertex on an
+            object edge).
+        point: contact point in the world, shape (2,).
+        normal: unit normal into the object, world frame, shape (2,).
+        force: contact force magnitude ``c >= 0``; the force on the object is ``c * normal``.
+        object_feature: object vertex (edge kind) or object edge index (tip kind).
+        hand_feature: hand edge (edge kind; 0 for the support) or hand vertex index (tip kind).
+        gap: signed gap at the returned state (``|gap| <= contact_tol``).
+    """
+
+    body: str
+    kind: str
+    point: np.ndarray
+    normal: np.ndarray
+    force: float
+    object_feature: int
+    hand_feature: int
+    gap: float = 0.0
+
+    @property
+    def key(self) -> ContactKey:
+        return (
+            BODY_NAMES.index(self.body),
+            KIND_NAMES.index(self.kind),
+            self.object_feature,
+            self.hand_feature,
+        )
+
+    def as_dict(self) -> dict:
+        return {
+            "body": self.body,
+            "kind": self.kind,
+            "point": self.point.copy(),
+            "normal": self.normal.copy(),
+            "force": self.force,
+        }
 
 
 @dataclass(frozen=True)

@@ -1,80 +1,21 @@
-"""Contact geometry between the object and the support, palm and fingers.
-
-A contact is a vertex of one body on an edge of another (docs/conventions.md, "Contacts"). It
-is identified by a key ``(body, kind, object_feature, hand_feature)``:
-
-* kind ``EDGE`` (``"edge"``): object vertex ``object_feature`` on edge ``hand_feature`` of the
-  hand body (for the support, the line y = 0, ``hand_feature = 0``); the contact point is fixed
-  in the object frame and the normal is the hand edge's outward normal.
-* kind ``TIP`` (``"tip"``): hand vertex ``hand_feature`` (usually a fingertip) on object edge
-  ``object_feature`` (from vertex k to k+1); the point is fixed in the hand body's frame and the
-  normal is the object edge's inward normal.
-
-Normals always point into the object; gaps are positive when the bodies are apart.
+"""Contact geometry between the object and the support, palm and fingers: the world
+geometry of a configuration, contact points, normals and gaps, detection and clearance
+(the compiled kernels of :mod:`grasp_env.sim`, called from Python). Contacts are identified
+by keys ``(body, kind, object_feature, hand_feature)`` (:mod:`grasp_env.core.state`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
-from grasp_env.scene import Scene
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.scene import Scene
+from grasp_env.core.state import EDGE, ContactKey
 from grasp_env.sim import clearance, detection
 from grasp_env.sim.placement import contact_rows, world_points
-
-EDGE, TIP = 0, 1
-KIND_NAMES = ("edge", "tip")
-
-#: Key of a contact: (body, kind, object_feature, hand_feature).
-ContactKey = tuple[int, int, int, int]
-
-
-@dataclass(frozen=True)
-class Contact:
-    """A contact of a returned state (public API, docs/conventions.md).
-
-    Attributes:
-        body: ``"support"``, ``"palm"``, ``"finger1"`` or ``"finger2"``.
-        kind: ``"edge"`` (object vertex on a hand edge) or ``"tip"`` (hand vertex on an
-            object edge).
-        point: contact point in the world, shape (2,).
-        normal: unit normal into the object, world frame, shape (2,).
-        force: contact force magnitude ``c >= 0``; the force on the object is ``c * normal``.
-        object_feature: object vertex (edge kind) or object edge index (tip kind).
-        hand_feature: hand edge (edge kind; 0 for the support) or hand vertex index (tip kind).
-        gap: signed gap at the returned state (``|gap| <= contact_tol``).
-    """
-
-    body: str
-    kind: str
-    point: np.ndarray
-    normal: np.ndarray
-    force: float
-    object_feature: int
-    hand_feature: int
-    gap: float = 0.0
-
-    @property
-    def key(self) -> ContactKey:
-        return (
-            geo.BODY_NAMES.index(self.body),
-            KIND_NAMES.index(self.kind),
-            self.object_feature,
-            self.hand_feature,
-        )
-
-    def as_dict(self) -> dict:
-        return {
-            "body": self.body,
-            "kind": self.kind,
-            "point": self.point.copy(),
-            "normal": self.normal.copy(),
-            "force": self.force,
-        }
 
 
 class Placement:
@@ -139,7 +80,7 @@ class LocalGeometry:
 @lru_cache(maxsize=64)
 def local_geometry(scene: Scene) -> LocalGeometry:
     """The scene's stacked body-frame geometry (scenes hash by identity; the last 64 are
-    kept, as :func:`grasp_env.kinematics.hand_polygons_local` keeps theirs)."""
+    kept, as :func:`grasp_env.core.kinematics.hand_polygons_local` keeps theirs)."""
     return LocalGeometry(scene)
 
 

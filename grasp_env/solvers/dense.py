@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 
 EPS = float(np.finfo(float).eps)
 

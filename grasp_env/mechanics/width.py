@@ -9,15 +9,15 @@ evaluates that expression directly in ``O(n^2)``, which is faster than the ``O(n
 walk for the polygons of this project (``n <= 20``) and has no bookkeeping to get wrong.
 
 The helper :func:`object_vertices_W` turns a scene or a vertex array into a validated
-``(n, 2)`` world polygon; :mod:`grasp_env.tippability` uses it too.
+``(n, 2)`` world polygon; :mod:`grasp_env.mechanics.tippability` uses it too.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env.scene import Scene
+from grasp_env.core import geometry as geo
+from grasp_env.core.scene import Scene
 
 __all__ = ["object_vertices_W", "object_width", "width_direction"]
 
@@ -26,7 +26,7 @@ def object_vertices_W(scene_or_vertices: Scene | np.ndarray) -> np.ndarray:
     """The object's world vertices at its scene placement, validated.
 
     Args:
-        scene_or_vertices: a :class:`~grasp_env.scene.Scene` (its
+        scene_or_vertices: a :class:`~grasp_env.core.scene.Scene` (its
             ``scene.object.vertices_W0`` is used) or an array-like of shape ``(n, 2)``,
             ``n >= 3``: the vertices of a strictly convex polygon, counter-clockwise, in the
             world frame W.

@@ -13,18 +13,16 @@ Object velocities are twists ``(vx, vy, omega)`` of the centre of mass; hand vel
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from grasp_env import fastlp, lp, simplex
-from grasp_env import geometry as geo
-from grasp_env import kinematics as kin
+from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
+from grasp_env.core.scene import Scene
+from grasp_env.core.state import State
 from grasp_env.errors import SolverError
-from grasp_env.scene import Scene
-from grasp_env.sim import dense
 from grasp_env.sim.pose import constraint_matrix
-from grasp_env.state import State
+from grasp_env.solvers import dense, fastlp, lp, simplex
 
 
 def V_ob(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.ndarray:
@@ -119,56 +117,6 @@ def finger_gravity_moments(scene: Scene, h: np.ndarray) -> np.ndarray:
     return out
 
 
-@dataclass(frozen=True)
-class MotionLP:
-    """Solution of the velocity LP (eqs. 19-21) and its dual, the force LP (eqs. 22-24).
-
-    Attributes:
-        status: ``"optimal"``, ``"infeasible"`` (velocity LP: the hand motion cannot happen, a
-            jam) or ``"unbounded"`` (velocity LP: the object can lower its potential energy
-            without limit, the force LP is infeasible: a fall).
-        velocity: an optimal object twist (3,) or None.
-        forces: the contact forces ``lambda`` (n,) of the force LP or None.
-        value: the common optimum ``m g^T dq_ob = xi^T lambda`` (duality).
-    """
-
-    status: str
-    velocity: np.ndarray | None
-    forces: np.ndarray | None
-    value: float
-
-
-def force_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
-    """Force formulation (eqs. 22-24): ``max xi^T lam  s.t.  V^T lam = m gamma, lam >= 0``.
-
-    Returned as the minimisation of ``-xi^T lam``: its ``value`` is minus the optimum.
-    """
-    b = np.array([0.0, weight, 0.0])
-    return lp.solve(-xi_, A_eq=V.T, b_eq=b, bounds=(0, None))
-
-
-def motion_lp(V: np.ndarray, xi_: np.ndarray, weight: float, solver: str = "fast") -> MotionLP:
-    """Object motion for a hand velocity: both formulations, checked against each other.
-
-    The velocity LP gives the object twist and its dual values the contact forces, which solve
-    the force LP (their optima agree by duality, eq. 19 = eq. 22; the tests check it with
-    :func:`force_lp`). ``solver="fast"`` uses the exact basis enumeration of
-    :mod:`grasp_env.fastlp` (falling back to HiGHS when it cannot decide); ``"highs"`` is the
-    reference path.
-    """
-    if solver == "fast":
-        try:
-            res = fastlp.solve_velocity_lp(V, xi_, np.array([0.0, weight, 0.0]))
-            return MotionLP(res.status, res.v, res.lam, res.value)
-        except SolverError:
-            pass  # undecided in double precision: the reference path decides
-    vel = lp.velocity_lp(V, xi_, weight)
-    if vel.status != "optimal":
-        return MotionLP(vel.status, None, None, vel.value)
-    # The force LP's solution is the velocity LP's dual (HiGHS marginals of V v >= xi).
-    return MotionLP("optimal", vel.x, -vel.duals_ub, vel.value)
-
-
 def _state_arrays(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     p, n, b = state.contact_arrays()
     return p, n, b, V_ob(p, n, state.object_pose[:2])
@@ -206,7 +154,7 @@ def escape_direction(state: State) -> np.ndarray | None:
 def is_form_closure(state: State) -> bool:
     """Form closure (section 2.5): with the hand fixed, ``V_ob dq >= 0`` only for ``dq = 0``.
 
-    Decided exactly by :func:`grasp_env.fastlp.form_closure_fast` on the scaled rows
+    Decided exactly by :func:`grasp_env.solvers.fastlp.form_closure_fast` on the scaled rows
     ``[n_i, r_i x n_i / rho]`` (the rows positively span R^3); :func:`escape_direction`
     (HiGHS) gives the same answer and, when there is one, the twist that escapes.
     """
@@ -249,7 +197,7 @@ def grip_objective(state: State) -> float:
                            tau_min <= tau <= tau_max (eqs. 35-36),  c >= 0 (eq. 34)
 
     as a direct LP in ``c`` with ``tau = s - W_F c`` substituted, by the compiled simplex
-    method of :mod:`grasp_env.simplex` (the tests compare it with HiGHS and with the paper's
+    method of :mod:`grasp_env.solvers.simplex` (the tests compare it with HiGHS and with the paper's
     null-space form, eqs. 29-33). The LP is solved in units of the
     object's weight ``W`` (forces) and ``W`` x palm width (moments, torques), so its answer
     does not depend on the scene's units.

@@ -78,9 +78,9 @@ from typing import Literal
 
 import numpy as np
 
-from grasp_env import geometry as geo
-from grasp_env.scene import Scene
-from grasp_env.width import object_vertices_W
+from grasp_env.core import geometry as geo
+from grasp_env.core.scene import Scene
+from grasp_env.mechanics.width import object_vertices_W
 
 __all__ = [
     "EdgeSubregion",
@@ -374,7 +374,7 @@ def tippability_regions(
     statics and the exact sets are in the module docstring.
 
     Args:
-        scene_or_vertices: a :class:`~grasp_env.scene.Scene` (``scene.object.vertices_W0``
+        scene_or_vertices: a :class:`~grasp_env.core.scene.Scene` (``scene.object.vertices_W0``
             is used) or an ``(n, 2)`` array of the object's CCW vertices in the world frame,
             resting on the support (its lowest vertices define the supporting edge).
         tol: lengths relative to the object's size and angles (radians) below which a

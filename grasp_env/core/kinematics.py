@@ -2,7 +2,7 @@
 
 A hand configuration is ``h = (x_p, y_p, theta_p, q1, q2)`` (shape (5,)); a hand velocity
 (or increment) ``dh`` has the same layout. Hand bodies are numbered as in
-:data:`grasp_env.geometry.BODY_NAMES`: 1 palm, 2 finger 1, 3 finger 2.
+:data:`grasp_env.core.geometry.BODY_NAMES`: 1 palm, 2 finger 1, 3 finger 2.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from grasp_env import geometry as geo
+from grasp_env.core import geometry as geo
 
 if TYPE_CHECKING:
-    from grasp_env.scene import Scene
+    from grasp_env.core.scene import Scene
 
 
 @lru_cache(maxsize=64)
@@ -72,7 +72,7 @@ def point_velocity_W(
 ) -> np.ndarray:
     """Velocity (2,) of the material point of hand body ``body`` at world point ``p_W``.
 
-    ``body`` uses :data:`grasp_env.geometry.BODY_NAMES` numbering; the support never moves.
+    ``body`` uses :data:`grasp_env.core.geometry.BODY_NAMES` numbering; the support never moves.
     """
     if body == geo.SUPPORT:
         return np.zeros(2)

@@ -2,12 +2,12 @@
 
 The simulator's hot-path LP has three variables (the object twist) and a handful of rows (the
 contacts), so every basis can be tried instead of pivoting, in one compiled call
-(:func:`grasp_env.sim.velocity_lp.solve`: numba, no BLAS, the same bits on every machine)::
+(:func:`grasp_env.solvers.velocity_lp.solve`: numba, no BLAS, the same bits on every machine)::
 
     velocity LP (primal):  min c^T v        s.t.  V v >= xi,          v in R^3 free
     force LP (dual):       max xi^T lam     s.t.  V^T lam = c,        lam >= 0
 
-with ``V = V_ob`` (n, 3) of :mod:`grasp_env.mechanics` (rows ``[n_i, r_i x n_i]``), ``xi``
+with ``V = V_ob`` (n, 3) of :mod:`grasp_env.mechanics.closure` (rows ``[n_i, r_i x n_i]``), ``xi``
 (n,) from eq. 20 and ``c = m gamma = (0, m g, 0)``.
 
 Method. Scaling row i (and ``xi_i``) by ``1 / |V_i|`` leaves the velocity LP unchanged and
@@ -66,8 +66,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from grasp_env.errors import SolverError
-from grasp_env.sim import velocity_lp
-from grasp_env.sim.velocity_lp import FEAS_TOL, RANK_TOL, SINGULAR_TOL
+from grasp_env.solvers import velocity_lp
+from grasp_env.solvers.velocity_lp import FEAS_TOL, RANK_TOL, SINGULAR_TOL
 
 __all__ = [
     "FEAS_TOL",
@@ -96,7 +96,7 @@ class FastLPResult:
         v: a primal optimum (3,), the object twist, or None.
         lam: a dual optimum (n,), the contact forces of the force LP, ``lam >= 0``, or None.
         value: ``c^T v = xi^T lam`` when optimal, ``inf`` when infeasible, ``-inf`` when
-            unbounded (the convention of :class:`grasp_env.lp.LPResult`).
+            unbounded (the convention of :class:`grasp_env.solvers.lp.LPResult`).
         certificate: when infeasible a Farkas vector ``y`` (n,), ``y >= 0``, ``1^T y = 1``,
             ``V^T y = 0``, ``xi^T y > 0``; when unbounded a unit twist ``d`` (3,) with
             ``V d >= 0`` and ``c^T d < 0``; None when optimal.
@@ -130,7 +130,7 @@ def solve_velocity_lp(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> FastLPRes
             outcomes certified: only for a problem within the tolerances of the boundary
             between two outcomes, or so ill-conditioned (bases with unit-row determinants
             near ``SINGULAR_TOL``) that its answer is not determined in double precision.
-            The caller may fall back to :func:`grasp_env.lp.solve`.
+            The caller may fall back to :func:`grasp_env.solvers.lp.solve`.
     """
     V, xi, c = _arrays(V, xi, c)
     status, v, lam, value, certificate = velocity_lp.solve(V, xi, c)

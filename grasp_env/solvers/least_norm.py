@@ -7,7 +7,7 @@ velocity on the LP's optimal face and for the steepest admissible descent of a f
 
 Active sets are tried by size (0 to 3), each size's in lexicographic order; a set counts
 when its rows are consistent (least-norm solution of the equalities and those rows, by
-:func:`grasp_env.sim.dense.lstsq` on the rows themselves, not their Gram matrix, whose
+:func:`grasp_env.solvers.dense.lstsq` on the rows themselves, not their Gram matrix, whose
 condition number is squared), the solution satisfies every inequality and the set's
 multipliers are non-negative, all to within ``tol`` times the problem's scale. The first
 size with a set that counts gives the answer: among its sets, the smallest ``|w|^2``, a
@@ -21,7 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE, dense
+from grasp_env.compiled import CACHE
+from grasp_env.solvers import dense
 
 #: Relative cut-off of singular values in the active sets' least-squares solves.
 RCOND = 1e-13

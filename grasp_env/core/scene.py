@@ -36,10 +36,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import yaml
 
-from grasp_env import geometry as geo
 from grasp_env.arguments import is_real
+from grasp_env.core import geometry as geo
+from grasp_env.core.kinematics import hand_polygons_W
 from grasp_env.errors import SceneError
-from grasp_env.kinematics import hand_polygons_W
 
 if TYPE_CHECKING:
     from importlib.resources.abc import Traversable

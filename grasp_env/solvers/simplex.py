@@ -2,7 +2,7 @@
 
 ``min c^T x  s.t.  A_eq x = b_eq,  A_ub x <= b_ub,  x >= 0`` with a handful of rows and
 columns (y* has 3 equality rows, up to 4 torque rows and one column per contact). HiGHS
-(:func:`grasp_env.lp.solve`) solves the same problems in a millisecond, most of it the call;
+(:func:`grasp_env.solvers.lp.solve`) solves the same problems in a millisecond, most of it the call;
 this tableau simplex takes microseconds and needs no BLAS, so its answer is the same on every
 machine. HiGHS stays the reference the tests compare it with.
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from grasp_env.sim import CACHE
+from grasp_env.compiled import CACHE
 
 OPTIMAL, INFEASIBLE, UNBOUNDED, ITERATION_LIMIT = 0, 1, 2, 3
 STATUS_NAMES = ("optimal", "infeasible", "unbounded", "iteration_limit")

@@ -1,5 +1,5 @@
 """Tiny exact least-norm problems in three variables: ``min 1/2 |w|^2 s.t. A w = b,
-C w >= d`` (the compiled active-set enumeration of :mod:`grasp_env.sim.least_norm`).
+C w >= d`` (the compiled active-set enumeration of :mod:`grasp_env.solvers.least_norm`).
 
 The simulator uses it for the least-motion object velocity on the LP's optimal face and
 for the steepest admissible descent of a fall.
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from grasp_env.errors import SolverError
-from grasp_env.sim import least_norm as kernel
+from grasp_env.solvers import least_norm as kernel
 
 
 def least_norm(
