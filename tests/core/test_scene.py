@@ -25,7 +25,7 @@ from grasp_env.core import scene as scene_mod
 from grasp_env.core.scene import Scene, bundled_scenes, load_scene, scene_from_dict
 from grasp_env.errors import SceneError
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[2] / "grasp_env" / "scenes"
 SCENE_FILES = sorted(p.stem for p in SCENES_DIR.glob("*.yaml"))
 REQUIRED_SCENES = (
     "fig13",
@@ -850,7 +850,7 @@ RANGE_ENDS = {
 @pytest.mark.parametrize("change", RANGE_ENDS.values(), ids=RANGE_ENDS.keys())
 def test_range_ends_are_accepted(change: Callable[[dict], None]) -> None:
     """Scenes at the ends of the documented ranges load (the palm width's ends are run in
-    tests/test_invariance.py)."""
+    tests/sim/test_invariance.py)."""
     d = copy.deepcopy(BASE)
     change(d)
     load_scene(d)
@@ -937,7 +937,7 @@ def test_bundled_scenes_are_package_data() -> None:
     assert sorted(p.name for p in folder.iterdir() if p.name.endswith(".yaml")) == [
         f"{name}.yaml" for name in SCENE_FILES
     ]
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     package_data = re.search(
         r"^\[tool\.setuptools\.package-data\]\n(?:#.*\n)*grasp_env = \[(.*)\]$",
         (root / "pyproject.toml").read_text(),

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "grasp_env"
+PACKAGE = Path(__file__).resolve().parents[2] / "grasp_env"
 #: Modules on the path of an env step (the analysis LPs go through scipy's HiGHS, in
 #: solvers/lp.py, which needs no BLAS).
 SIMULATION = [

@@ -44,7 +44,7 @@ from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.simulator import WorkLimitError
 from grasp_env.testing import check_state, cross, hand_polygons_W, rot
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[2] / "grasp_env" / "scenes"
 SCENES = (
     "fig13",
     "square",

@@ -21,7 +21,7 @@ pytest.importorskip("rl_zoo3")
 from agents import train_ppo as tp
 from grasp_env.envs import ENV_KWARGS
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 CONFIG = REPO / "configs" / "ppo.yml"
 IDS = list(ENV_KWARGS)
 

@@ -22,7 +22,7 @@ import pytest
 from grasp_env import testing
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import soak
 
 

@@ -24,7 +24,7 @@ pytest.importorskip("ray.rllib")
 from agents import train_rllib as tr
 from agents.rllib_policy import RLlibPolicy, load_run
 
-CONFIG = Path(__file__).resolve().parents[1] / "configs" / "rllib_ppo.yml"
+CONFIG = Path(__file__).resolve().parents[2] / "configs" / "rllib_ppo.yml"
 ENTRIES = list(tr.load_config(CONFIG))
 BASE = ["--env", "FrictionlessGrasp-v0", "--num-env-runners", "1"]
 

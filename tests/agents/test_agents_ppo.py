@@ -24,7 +24,7 @@ from agents import evaluate as ev
 from agents import train_ppo as tp
 from grasp_env.envs import ENV_ID, ENV_KWARGS, RANDOM_SHAPES_ENV_ID
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 CONFIG = REPO / "configs" / "ppo.yml"
 ENTRIES = list(tp.load_config(CONFIG))
 #: Tiny PPO settings for training runs in tests (short episodes, small rollouts and network).

@@ -293,7 +293,7 @@ def test_record_video_writes_an_mp4_headless(tmp_path):
 
 
 def test_viz_extra_installs_moviepy():
-    text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
+    text = (Path(__file__).resolve().parents[2] / "pyproject.toml").read_text()
     (viz,) = [line for line in text.splitlines() if line.startswith("viz = ")]
     assert '"moviepy' in viz
 

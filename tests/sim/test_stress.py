@@ -29,7 +29,7 @@ from grasp_env import Simulator, testing
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.errors import SceneError
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import soak
 
 #: Increment cap of one hand move: no valid move needs more than a few dozen increments.

@@ -25,7 +25,7 @@ import yaml
 from grasp_env.envs import ENV_ID
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[2] / "grasp_env" / "scenes"
 BASE = yaml.safe_load((SCENES_DIR / "fig13.yaml").read_text())
 V = BASE["object"]["vertices"]
 

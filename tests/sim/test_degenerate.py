@@ -20,7 +20,7 @@ from scipy.spatial import ConvexHull
 import grasp_env
 from grasp_env import Simulator, testing
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 HALF_PI = math.pi / 2
 TOL = 1e-9  # contact_tol x palm width (1)

@@ -37,9 +37,9 @@ from grasp_env.core import scene as scene_mod
 from grasp_env.errors import SceneError
 from grasp_env.mechanics import closure as mech
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "grasp_env" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[2] / "grasp_env" / "scenes"
 #: Pose agreement, as a fraction of the palm width (events are located to 1e-9 of it).
 POSE_RTOL = 1e-7
 FORCE_RTOL = 1e-6

@@ -20,7 +20,7 @@ from image_checks import ink_runs
 import grasp_env
 from agents.scripted import EXIT_NOT_TIPPABLE, ScriptedPolicy, main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
 #: Scenes whose plan needs palm motion: a tilted-palm placement (square, heavy_square,
 #: triangle; the policy moves the palm there first) or exploratory lifting with palm moves
