@@ -11,7 +11,7 @@ arguments override the registered ones. :func:`register_envs` registers them wit
 entry point, so registering imports neither the environment module nor pygame. Importing this
 package (which ``import grasp_env`` does) calls it: ``gymnasium.make("grasp_env:
 FrictionlessGrasp-v0")`` and spawned vector-env workers rely on that. ``gymnasium.make``
-puts :class:`RestoreOnError <grasp_env.envs.frictionless_grasp.RestoreOnError>` outside its
+puts :class:`RestoreOnError <grasp_env.envs.restore.RestoreOnError>` outside its
 standard wrappers, so that a refused ``reset`` or ``step`` leaves them as they were.
 """
 
@@ -46,7 +46,7 @@ ENV_KWARGS = MappingProxyType(
 REWARD_THRESHOLD = 10.0
 #: The wrapper ``gymnasium.make`` adds outside ``PassiveEnvChecker``, ``OrderEnforcing`` and
 #: ``TimeLimit``.
-WRAPPER_ENTRY_POINT = "grasp_env.envs.frictionless_grasp:RestoreOnError"
+WRAPPER_ENTRY_POINT = "grasp_env.envs.restore:RestoreOnError"
 
 
 def register_envs() -> None:

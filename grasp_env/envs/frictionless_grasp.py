@@ -1,11 +1,16 @@
-"""``FrictionlessGrasp-v0``: pick a convex polygon up off a flat support without friction."""
+"""``FrictionlessGrasp-v0``: pick a convex polygon up off a flat support without friction.
+
+The class docstring is the env's documentation, in Gymnasium's style (spaces, starts,
+rewards, episode end, arguments): about a third of this module, which is why it is longer
+than the others. Its observation layout is in :mod:`grasp_env.envs.observation`, the checks
+of its arguments in :mod:`grasp_env.envs.checks`.
+"""
 
 from __future__ import annotations
 
 import copy
 import math
 import os
-from collections.abc import Callable
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -13,39 +18,40 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
-from grasp_env.arguments import is_real, real_vector, short
-from grasp_env.core import geometry as geo
-from grasp_env.core import kinematics as kin
+from grasp_env.arguments import real_vector, short
 from grasp_env.core.scene import Scene, load_scene
 from grasp_env.core.state import State
-from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_shape_scene
+from grasp_env.envs.checks import (
+    flag,
+    number,
+    numbers,
+    palm_problem,
+    placement_problem,
+    shape_ranges,
+    spec_name,
+)
+from grasp_env.envs.observation import (
+    BODIES,
+    BODY_INDEX,
+    GRIP_MAX,
+    PALM_THETA_MAX,
+    PALM_X_RANGE,
+    PALM_Y_MAX,
+    REACH,
+    in_palm_frame,
+    observation_bounds,
+)
+from grasp_env.envs.shapes import hand_setup, random_shape_scene
 from grasp_env.errors import SolverError
 from grasp_env.mechanics.closure import grip_objective, is_form_closure
 from grasp_env.planning import centred_placement
 from grasp_env.simulator import CONTACT_TOL_RANGE, SimulationError, Simulator
-
-# Workspace and observation ranges, in palm widths (lengths) and radians, about the object's
-# scene position ``x0`` (x) and the support (y).
-PALM_X_RANGE = 2.0  #: palm x stays within x0 +- this
-PALM_Y_MAX = 3.0  #: palm y stays within [0, this]
-PALM_THETA_MAX = 0.5 * math.pi  #: palm angle stays within +- this
-REACH = 2.0  #: the object is out of reach when its centre is this far from the palm (palm frame)
-OBJECT_X_RANGE = PALM_X_RANGE + REACH
-OBJECT_Y_MAX = PALM_Y_MAX + REACH
-VERTEX_RANGE = 2.0  #: object vertex coordinates (object frame)
-COUNT_MAX = 8.0  #: contacts per body
-FORCE_MAX = 10.0  #: total contact force on a body, in object weights
-GRIP_MAX = 10.0  #: y* in object weights (``y_max``)
-HEIGHT_MIN, HEIGHT_MAX = -1.0, OBJECT_Y_MAX  #: object centre height above its start
 
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
 #: (rad), finger angles (rad).
 RANDOM_PALM_XY, RANDOM_PALM_THETA, RANDOM_FINGER = 0.02, 0.05, 0.1
 RANDOM_START_TRIES = 50
 
-BODIES = geo.BODY_NAMES
-#: Each body's first entry in the observation's contact block (count, then force).
-_BODY_INDEX = {name: 2 * i for i, name in enumerate(BODIES)}
 _STARTS = ("scene", "preliftoff", "random")
 _OPTION_KEYS = ("scene", "palm", "fingers")
 _REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
@@ -166,7 +172,7 @@ class FrictionlessGraspEnv(gym.Env):
     limits, or overlapping the object or the support) or ``seed`` raises ``ValueError`` naming
     it. A refused reset changes nothing: the episode in progress, if any, continues as if the
     call had not happened (same state, same random generator), and the wrappers that
-    ``gymnasium.make`` adds are left as they were (:class:`RestoreOnError`).
+    ``gymnasium.make`` adds are left as they were (:class:`~grasp_env.envs.restore.RestoreOnError`).
 
     ## Episode End
 
@@ -271,15 +277,15 @@ class FrictionlessGraspEnv(gym.Env):
         render_width: int = 640,
         render_height: int = 480,
     ) -> None:
-        self.palm_control = _flag(palm_control, "palm_control")
-        self.always_compute_grip = _flag(always_compute_grip, "always_compute_grip")
-        self.max_finger_step = _number(max_finger_step, "max_finger_step", 0.0, math.pi / 2)
-        self.max_palm_step = _numbers(max_palm_step, "max_palm_step", 3, 0.0, 1.0)
+        self.palm_control = flag(palm_control, "palm_control")
+        self.always_compute_grip = flag(always_compute_grip, "always_compute_grip")
+        self.max_finger_step = number(max_finger_step, "max_finger_step", 0.0, math.pi / 2)
+        self.max_palm_step = numbers(max_palm_step, "max_palm_step", 3, 0.0, 1.0)
         if not isinstance(start, str) or start not in _STARTS:
             raise ValueError(f"start must be one of {list(_STARTS)}, got {start!r}")
         self.start = start
         self.reward_weights = {
-            name: _number(value, f"reward_{name}_weight", 0.0, math.inf, lo_open=False)
+            name: number(value, f"reward_{name}_weight", 0.0, math.inf, lo_open=False)
             for name, value in zip(
                 _REWARD_TERMS,
                 (
@@ -292,8 +298,8 @@ class FrictionlessGraspEnv(gym.Env):
                 strict=True,
             )
         }
-        self.gamma = _number(gamma, "gamma", 0.0, 1.0)
-        self.contact_tol = _number(
+        self.gamma = number(gamma, "gamma", 0.0, 1.0)
+        self.contact_tol = number(
             contact_tol, "contact_tol", *CONTACT_TOL_RANGE, lo_open=False, hi_open=True
         )
         if isinstance(max_vertices, bool) or not isinstance(max_vertices, int | np.integer):
@@ -316,7 +322,7 @@ class FrictionlessGraspEnv(gym.Env):
         if not specs:
             raise ValueError("scene must be a scene or a non-empty list of scenes, got []")
         self.scenes = [self._load(spec, "scene") for spec in specs]
-        self.shape_ranges = _shape_ranges(shape_randomizer, self.max_vertices)
+        self.shape_ranges = shape_ranges(shape_randomizer, self.max_vertices)
         if self.shape_ranges is not None:
             for base in self.scenes:  # fail now, not at a reset, if no shape fits a hand
                 random_shape_scene(np.random.default_rng(0), base, self.shape_ranges)
@@ -324,7 +330,7 @@ class FrictionlessGraspEnv(gym.Env):
         self._sims: dict[int, Simulator] = {}
         self._preliftoff_cache: dict[int, State] = {}
         self.action_space = spaces.Box(-1.0, 1.0, (5 if self.palm_control else 2,), np.float32)
-        low, high = _observation_bounds(self.max_vertices)
+        low, high = observation_bounds(self.max_vertices)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._obs_low, self._obs_high = low, high
 
@@ -368,21 +374,21 @@ class FrictionlessGraspEnv(gym.Env):
         try:
             scene = load_scene(spec)
         except ValueError as exc:
-            raise ValueError(f"{name} {_spec_name(spec)}: {exc}") from None
+            raise ValueError(f"{name} {spec_name(spec)}: {exc}") from None
         n = len(scene.object.vertices_B)
         if n > self.max_vertices:
             raise ValueError(
-                f"{name} {_spec_name(spec)}: the object has {n} vertices, more than "
+                f"{name} {spec_name(spec)}: the object has {n} vertices, more than "
                 f"max_vertices={self.max_vertices}"
             )
-        problem = _palm_problem(scene, scene.palm.pose)
+        problem = palm_problem(scene, scene.palm.pose)
         if problem:
-            raise ValueError(f"{name} {_spec_name(spec)}: palm.pose {problem}")
+            raise ValueError(f"{name} {spec_name(spec)}: palm.pose {problem}")
         if self.start != "scene":
-            problem = _placement_problem(scene, scene.object.start_pose, hand_setup(scene))
+            problem = placement_problem(scene, scene.object.start_pose, hand_setup(scene))
             if problem:
                 raise ValueError(
-                    f"{name} {_spec_name(spec)}: start={self.start!r} needs the pre-liftoff hand "
+                    f"{name} {spec_name(spec)}: start={self.start!r} needs the pre-liftoff hand "
                     f"set-up, but there {problem}"
                 )
         return scene
@@ -409,7 +415,7 @@ class FrictionlessGraspEnv(gym.Env):
     def _check_hand(self, scene: Scene, opts: dict[str, Any]) -> np.ndarray:
         h = scene.initial_hand.copy()
         if "palm" in opts:
-            problem = _palm_problem(scene, opts["palm"])
+            problem = palm_problem(scene, opts["palm"])
             if problem:
                 raise ValueError(f"options['palm'] {problem}")
             h[:3] = opts["palm"]
@@ -421,7 +427,7 @@ class FrictionlessGraspEnv(gym.Env):
                     f"options['fingers'] {q.tolist()} is outside the joint limits {lim.tolist()}"
                 )
             h[3:] = q
-        problem = _placement_problem(scene, scene.object.start_pose, h)
+        problem = placement_problem(scene, scene.object.start_pose, h)
         if problem:
             raise ValueError(
                 f"options palm={h[:3].tolist()}, fingers={h[3:].tolist()} refused: {problem}"
@@ -524,7 +530,7 @@ class FrictionlessGraspEnv(gym.Env):
         for _ in range(RANDOM_START_TRIES):
             h = state.hand + rng.uniform(-1.0, 1.0, 5) * scale
             h[3:] = np.clip(h[3:], lim[:, 0], lim[:, 1])
-            if _placement_problem(scene, state.object_pose, h) is None:
+            if placement_problem(scene, state.object_pose, h) is None:
                 try:
                     return sim.settle(state.object_pose, h)
                 except (SimulationError, SolverError):
@@ -626,7 +632,7 @@ class FrictionlessGraspEnv(gym.Env):
                   "success": closure and not on_support, "contact_obs": None}  # fmt: skip
         else:
             an = same_contacts.copy()
-        p_P = an["in_palm_frame"] = _in_palm_frame(state)
+        p_P = an["in_palm_frame"] = in_palm_frame(state)
         an["out_of_reach"] = max(abs(p_P[0]), abs(p_P[1])) > REACH * state.scene.palm.width
         return an
 
@@ -674,7 +680,7 @@ class FrictionlessGraspEnv(gym.Env):
         if an["contact_obs"] is None:  # new contacts (else the buffer holds them already)
             contacts = [0.0] * (2 * len(BODIES))
             for c in state.contacts:
-                k = _BODY_INDEX[c.body]
+                k = BODY_INDEX[c.body]
                 contacts[k] += 1.0
                 contacts[k + 1] += c.force / weight
             contacts += (
@@ -764,54 +770,7 @@ class FrictionlessGraspEnv(gym.Env):
 _REWARD_KEYS = tuple(f"reward_{k}" for k in _REWARD_TERMS)
 
 
-class RestoreOnError(gym.Wrapper, gym.utils.RecordConstructorArgs):
-    """The outermost wrapper ``gymnasium.make`` puts on ``FrictionlessGrasp-v0``: a ``reset``
-    or ``step`` that raises (refused input) leaves the wrappers inside it as they were.
-
-    gymnasium's wrappers note a call before passing it on: ``PassiveEnvChecker`` marks its
-    first-reset check done, ``TimeLimit`` zeroes its step count, ``OrderEnforcing`` marks the
-    env reset. After a refused first reset the checker has no reset data for its first-step
-    check (a ``TypeError`` at every step); after a refused reset mid-episode the time limit
-    starts over. The env changes nothing on a refused call; this restores the attributes of
-    the wrappers in between.
-    """
-
-    def __init__(self, env: gym.Env) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self)
-        gym.Wrapper.__init__(self, env)
-        self._inner = []  # the wrappers between this one and the env, fixed once made
-        inner = env
-        while isinstance(inner, gym.Wrapper):
-            self._inner.append(inner)
-            inner = inner.env
-
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        return self._restoring(self.env.reset, seed=seed, options=options)
-
-    def step(self, action: Any):
-        return self._restoring(self.env.step, action)
-
-    def _restoring(self, call: Callable, *args: Any, **kwargs: Any) -> Any:
-        saved = [(wrapper, vars(wrapper).copy()) for wrapper in self._inner]
-        try:
-            return call(*args, **kwargs)
-        except Exception:
-            for wrapper, attributes in saved:
-                vars(wrapper).clear()
-                vars(wrapper).update(attributes)
-            raise
-
-
 # ---------------------------------------------------------------------- helpers
-def _in_palm_frame(state: State) -> tuple[float, float, float]:
-    """Object pose ``(x, y, theta)`` in the palm frame."""
-    x_p, y_p, th_p = state.hand[:3].tolist()
-    x_o, y_o, th_o = state.object_pose.tolist()
-    dx, dy = x_o - x_p, y_o - y_p
-    c, s = math.cos(th_p), math.sin(th_p)
-    return (c * dx + s * dy, -s * dx + c * dy, th_o - th_p)
-
-
 def _same_contacts(new: State, old: State) -> bool:
     """Whether ``new`` has the contacts of ``old``, object pose included: the simulator
     handed them on (the hand moved clear of an object at rest), or the object and the hand
@@ -824,109 +783,4 @@ def _same_contacts(new: State, old: State) -> bool:
     )
 
 
-def _placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:
-    """Why a hand configuration is not allowed with the object at ``object_pose`` (None if
-    it is), at the default contact tolerance."""
-    return kin.hand_placement_problem(scene, object_pose, hand, 1e-9 * scene.palm.width)
-
-
-def _palm_problem(scene: Scene, palm: np.ndarray) -> str | None:
-    """Why a palm pose lies outside the env's palm workspace (None if it is inside)."""
-    x, y, th = (float(v) for v in palm)
-    w, x0 = scene.palm.width, scene.object.start_pose[0]
-    if abs(x - x0) > PALM_X_RANGE * w or not 0 <= y <= PALM_Y_MAX * w:
-        return (
-            f"{[x, y, th]} is outside the palm workspace |x - {x0:.4g}| <= "
-            f"{PALM_X_RANGE * w:.4g}, 0 <= y <= {PALM_Y_MAX * w:.4g}"
-        )
-    if abs(th) > PALM_THETA_MAX:
-        return f"angle {th!r} is outside [-pi/2, pi/2]"
-    return None
-
-
-def _observation_bounds(n: int) -> tuple[np.ndarray, np.ndarray]:
-    pi = math.pi
-    low = [-PALM_X_RANGE, 0.0, -PALM_THETA_MAX, -pi, -pi]
-    high = [PALM_X_RANGE, PALM_Y_MAX, PALM_THETA_MAX, pi, pi]
-    low += [-OBJECT_X_RANGE, 0.0, -1.0, -1.0, -REACH, -REACH, -1.0, -1.0]
-    high += [OBJECT_X_RANGE, OBJECT_Y_MAX, 1.0, 1.0, REACH, REACH, 1.0, 1.0]
-    low += [-VERTEX_RANGE] * (2 * n) + [0.0] * n
-    high += [VERTEX_RANGE] * (2 * n) + [1.0] * n
-    low += [0.0] * (2 * len(BODIES))
-    high += [COUNT_MAX, FORCE_MAX] * len(BODIES)
-    low += [0.0, 0.0, HEIGHT_MIN]
-    high += [1.0, GRIP_MAX, HEIGHT_MAX]
-    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
-
-
-def _spec_name(spec: Any) -> str:
-    """A scene spec for an error message: a Scene by its name, anything else shortened."""
-    return repr(spec.name) if isinstance(spec, Scene) else short(spec)
-
-
-def _flag(value: Any, name: str) -> bool:
-    if not isinstance(value, bool | np.bool_):
-        raise TypeError(f"{name} must be a bool, got {value!r}")
-    return bool(value)
-
-
-def _number(
-    value: Any,
-    name: str,
-    lo: float,
-    hi: float,
-    lo_open: bool = True,
-    hi_open: bool = False,
-) -> float:
-    if not is_real(value):
-        raise TypeError(f"{name} must be a number, got {short(value)}")
-    try:
-        x = float(value)
-    except OverflowError:  # an int beyond the float range
-        x = math.inf
-    ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)
-    if not ok:
-        interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-        raise ValueError(f"{name} must be finite and in {interval}, got {short(value)}")
-    return x
-
-
-def _numbers(value: Any, name: str, size: int, lo: float, hi: float) -> np.ndarray:
-    if not isinstance(value, list | tuple | np.ndarray) or len(value) != size:
-        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
-    return np.array([_number(v, f"{name}[{i}]", lo, hi) for i, v in enumerate(value)])
-
-
-def _shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float]] | None:
-    if value is None or value is False:
-        return None
-    if value is True:
-        value = {}
-    if not isinstance(value, dict):
-        raise TypeError(f"shape_randomizer must be None, True or a dict, got {value!r}")
-    unknown = sorted(set(value) - set(DEFAULT_SHAPE_RANGES), key=str)
-    if unknown:
-        raise ValueError(
-            f"shape_randomizer: unknown key(s) {unknown}; allowed: {list(DEFAULT_SHAPE_RANGES)}"
-        )
-    out = dict(DEFAULT_SHAPE_RANGES)
-    for key, raw in value.items():
-        name = f"shape_randomizer[{key!r}]"
-        if not isinstance(raw, list | tuple) or len(raw) != 2:
-            raise ValueError(f"{name} must be a (low, high) pair, got {raw!r}")
-        lo, hi = (_number(x, name, 0.0, math.inf, hi_open=True) for x in raw)
-        if lo > hi:
-            raise ValueError(f"{name} must have low <= high, got {raw!r}")
-        if key == "vertices":
-            if any(isinstance(x, bool) or not isinstance(x, int | np.integer) for x in raw):
-                raise TypeError(f"{name} must be two ints, got {raw!r}")
-            if lo < 3 or hi > max_vertices:
-                raise ValueError(f"{name} must lie in [3, max_vertices={max_vertices}]: {raw!r}")
-            lo, hi = int(lo), int(hi)
-        if key == "aspect" and lo < 1.0:
-            raise ValueError(f"{name} must be >= 1, got {raw!r}")
-        out[key] = (lo, hi)
-    return out
-
-
-__all__ = ["FrictionlessGraspEnv", "RestoreOnError"]
+__all__ = ["FrictionlessGraspEnv"]

@@ -20,7 +20,8 @@ import grasp_env
 from grasp_env.core import geometry as geo
 from grasp_env.envs import ENV_ID, REWARD_THRESHOLD, WRAPPER_ENTRY_POINT
 from grasp_env.envs import frictionless_grasp as fg_module
-from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv, _observation_bounds
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.envs.observation import observation_bounds
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_convex_polygon
 from grasp_env.planning import close_until_touch
 
@@ -618,7 +619,7 @@ def test_observation_layout():
     support_count, support_force = obs[13 + 3 * n : 15 + 3 * n]
     assert support_count == 2 and support_force == pytest.approx(1.0)
     assert obs[-3] == 0 and obs[-2] == 10 and obs[-1] == 0
-    low, high = _observation_bounds(n)
+    low, high = observation_bounds(n)
     assert np.array_equal(env.observation_space.low, low)
     assert np.array_equal(env.observation_space.high, high)
 
@@ -660,7 +661,7 @@ def test_observation_follows_each_step_state(kwargs):
         grip = info["grip_force"] / weight if info["form_closure"] else 10.0
         expected += [*per_body, float(info["form_closure"]), grip, (y_o - y0) / w]
         tail = np.concatenate([obs[:13], obs[13 + 3 * n :]])
-        low, high = _observation_bounds(n)
+        low, high = observation_bounds(n)
         bounds = (
             np.concatenate([low[:13], low[13 + 3 * n :]]),
             np.concatenate([high[:13], high[13 + 3 * n :]]),

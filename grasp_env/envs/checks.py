@@ -1,0 +1,105 @@
+"""Checks of ``FrictionlessGrasp-v0``'s constructor arguments and reset options: errors name
+the argument and show the value."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from grasp_env.arguments import is_real, short
+from grasp_env.core import kinematics as kin
+from grasp_env.core.scene import Scene
+from grasp_env.envs.observation import PALM_THETA_MAX, PALM_X_RANGE, PALM_Y_MAX
+from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES
+
+
+def placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:
+    """Why a hand configuration is not allowed with the object at ``object_pose`` (None if
+    it is), at the default contact tolerance."""
+    return kin.hand_placement_problem(scene, object_pose, hand, 1e-9 * scene.palm.width)
+
+
+def palm_problem(scene: Scene, palm: np.ndarray) -> str | None:
+    """Why a palm pose lies outside the env's palm workspace (None if it is inside)."""
+    x, y, th = (float(v) for v in palm)
+    w, x0 = scene.palm.width, scene.object.start_pose[0]
+    if abs(x - x0) > PALM_X_RANGE * w or not 0 <= y <= PALM_Y_MAX * w:
+        return (
+            f"{[x, y, th]} is outside the palm workspace |x - {x0:.4g}| <= "
+            f"{PALM_X_RANGE * w:.4g}, 0 <= y <= {PALM_Y_MAX * w:.4g}"
+        )
+    if abs(th) > PALM_THETA_MAX:
+        return f"angle {th!r} is outside [-pi/2, pi/2]"
+    return None
+
+
+def spec_name(spec: Any) -> str:
+    """A scene spec for an error message: a Scene by its name, anything else shortened."""
+    return repr(spec.name) if isinstance(spec, Scene) else short(spec)
+
+
+def flag(value: Any, name: str) -> bool:
+    if not isinstance(value, bool | np.bool_):
+        raise TypeError(f"{name} must be a bool, got {value!r}")
+    return bool(value)
+
+
+def number(
+    value: Any,
+    name: str,
+    lo: float,
+    hi: float,
+    lo_open: bool = True,
+    hi_open: bool = False,
+) -> float:
+    if not is_real(value):
+        raise TypeError(f"{name} must be a number, got {short(value)}")
+    try:
+        x = float(value)
+    except OverflowError:  # an int beyond the float range
+        x = math.inf
+    ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)
+    if not ok:
+        interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        raise ValueError(f"{name} must be finite and in {interval}, got {short(value)}")
+    return x
+
+
+def numbers(value: Any, name: str, size: int, lo: float, hi: float) -> np.ndarray:
+    if not isinstance(value, list | tuple | np.ndarray) or len(value) != size:
+        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
+    return np.array([number(v, f"{name}[{i}]", lo, hi) for i, v in enumerate(value)])
+
+
+def shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float]] | None:
+    if value is None or value is False:
+        return None
+    if value is True:
+        value = {}
+    if not isinstance(value, dict):
+        raise TypeError(f"shape_randomizer must be None, True or a dict, got {value!r}")
+    unknown = sorted(set(value) - set(DEFAULT_SHAPE_RANGES), key=str)
+    if unknown:
+        raise ValueError(
+            f"shape_randomizer: unknown key(s) {unknown}; allowed: {list(DEFAULT_SHAPE_RANGES)}"
+        )
+    out = dict(DEFAULT_SHAPE_RANGES)
+    for key, raw in value.items():
+        name = f"shape_randomizer[{key!r}]"
+        if not isinstance(raw, list | tuple) or len(raw) != 2:
+            raise ValueError(f"{name} must be a (low, high) pair, got {raw!r}")
+        lo, hi = (number(x, name, 0.0, math.inf, hi_open=True) for x in raw)
+        if lo > hi:
+            raise ValueError(f"{name} must have low <= high, got {raw!r}")
+        if key == "vertices":
+            if any(isinstance(x, bool) or not isinstance(x, int | np.integer) for x in raw):
+                raise TypeError(f"{name} must be two ints, got {raw!r}")
+            if lo < 3 or hi > max_vertices:
+                raise ValueError(f"{name} must lie in [3, max_vertices={max_vertices}]: {raw!r}")
+            lo, hi = int(lo), int(hi)
+        if key == "aspect" and lo < 1.0:
+            raise ValueError(f"{name} must be >= 1, got {raw!r}")
+        out[key] = (lo, hi)
+    return out

@@ -1,0 +1,53 @@
+"""The observation of ``FrictionlessGrasp-v0``: its ranges and layout (the env's docstring
+lists every entry) and the geometry it reports."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from grasp_env.core import geometry as geo
+from grasp_env.core.state import State
+
+# Workspace and observation ranges, in palm widths (lengths) and radians, about the object's
+# scene position ``x0`` (x) and the support (y).
+PALM_X_RANGE = 2.0  #: palm x stays within x0 +- this
+PALM_Y_MAX = 3.0  #: palm y stays within [0, this]
+PALM_THETA_MAX = 0.5 * math.pi  #: palm angle stays within +- this
+REACH = 2.0  #: the object is out of reach when its centre is this far from the palm (palm frame)
+OBJECT_X_RANGE = PALM_X_RANGE + REACH
+OBJECT_Y_MAX = PALM_Y_MAX + REACH
+VERTEX_RANGE = 2.0  #: object vertex coordinates (object frame)
+COUNT_MAX = 8.0  #: contacts per body
+FORCE_MAX = 10.0  #: total contact force on a body, in object weights
+GRIP_MAX = 10.0  #: y* in object weights (``y_max``)
+HEIGHT_MIN, HEIGHT_MAX = -1.0, OBJECT_Y_MAX  #: object centre height above its start
+
+BODIES = geo.BODY_NAMES
+#: Each body's first entry in the observation's contact block (count, then force).
+BODY_INDEX = {name: 2 * i for i, name in enumerate(BODIES)}
+
+
+def in_palm_frame(state: State) -> tuple[float, float, float]:
+    """Object pose ``(x, y, theta)`` in the palm frame."""
+    x_p, y_p, th_p = state.hand[:3].tolist()
+    x_o, y_o, th_o = state.object_pose.tolist()
+    dx, dy = x_o - x_p, y_o - y_p
+    c, s = math.cos(th_p), math.sin(th_p)
+    return (c * dx + s * dy, -s * dx + c * dy, th_o - th_p)
+
+
+def observation_bounds(n: int) -> tuple[np.ndarray, np.ndarray]:
+    pi = math.pi
+    low = [-PALM_X_RANGE, 0.0, -PALM_THETA_MAX, -pi, -pi]
+    high = [PALM_X_RANGE, PALM_Y_MAX, PALM_THETA_MAX, pi, pi]
+    low += [-OBJECT_X_RANGE, 0.0, -1.0, -1.0, -REACH, -REACH, -1.0, -1.0]
+    high += [OBJECT_X_RANGE, OBJECT_Y_MAX, 1.0, 1.0, REACH, REACH, 1.0, 1.0]
+    low += [-VERTEX_RANGE] * (2 * n) + [0.0] * n
+    high += [VERTEX_RANGE] * (2 * n) + [1.0] * n
+    low += [0.0] * (2 * len(BODIES))
+    high += [COUNT_MAX, FORCE_MAX] * len(BODIES)
+    low += [0.0, 0.0, HEIGHT_MIN]
+    high += [1.0, GRIP_MAX, HEIGHT_MAX]
+    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
