@@ -31,7 +31,7 @@ from grasp_env.arguments import real_vector
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import Scene, load_scene
-from grasp_env.core.state import KIND_NAMES, Contact, Event, State
+from grasp_env.core.state import KIND_NAMES, Contact, ContactKey, Event, State
 from grasp_env.errors import SimulationError, SolverError, WorkLimitError
 from grasp_env.mechanics import closure as mech
 from grasp_env.mechanics import contacts as ct
@@ -279,16 +279,16 @@ class Simulator:
         """A :class:`State` from the compiled :func:`grasp_env.sim.move.at_rest` output."""
         contacts = tuple(
             Contact(
-                body=geo.BODY_NAMES[key[0]],
-                kind=KIND_NAMES[key[1]],
+                body=geo.BODY_NAMES[key.body],
+                kind=KIND_NAMES[key.kind],
                 point=row[move.ROW_POINT],
                 normal=row[move.ROW_NORMAL],
                 force=float(row[move.ROW_FORCE]),
-                object_feature=key[2],
-                hand_feature=key[3],
+                object_feature=key.object_feature,
+                hand_feature=key.hand_feature,
                 gap=float(row[move.ROW_GAP]),
             )
-            for key, row in zip(keys.tolist(), rows, strict=True)
+            for key, row in zip(map(ContactKey._make, keys.tolist()), rows, strict=True)
         )
         return self._new_state(q, h, contacts, keys, events, jammed, blocked)
 
@@ -317,7 +317,8 @@ def _piece(value) -> str:
 def _events(log: list) -> list[Event]:
     """A compiled event log as :class:`~grasp_env.core.state.Event` objects."""
     return [
-        Event(ev.NAMES[kind], s, tuple(tuple(k) for k in keys.tolist())) for kind, s, keys in log
+        Event(ev.NAMES[kind], s, tuple(ContactKey(*k) for k in keys.tolist()))
+        for kind, s, keys in log
     ]
 
 

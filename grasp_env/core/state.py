@@ -16,6 +16,7 @@ Normals always point into the object; gaps are positive when the bodies are apar
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -25,8 +26,24 @@ from grasp_env.core.scene import Scene
 EDGE, TIP = 0, 1
 KIND_NAMES = ("edge", "tip")
 
-#: Key of a contact: (body, kind, object_feature, hand_feature).
-ContactKey = tuple[int, int, int, int]
+#: The names a contact's body and kind, and an event's kind, take.
+BodyName = Literal["support", "palm", "finger1", "finger2"]
+ContactKind = Literal["edge", "tip"]
+EventKind = Literal[
+    "new_contact", "edge_to_tip", "tip_to_edge", "lost_contact", "fall_start", "fall_end",
+    "jam", "joint_limit", "hand_blocked",
+]  # fmt: skip
+
+
+class ContactKey(NamedTuple):
+    """A contact's identity: its body (:data:`grasp_env.core.geometry.BODY_NAMES` index),
+    kind (``EDGE`` or ``TIP``) and the object and hand features it joins (see
+    :class:`Contact`). A tuple, so it compares and hashes as the plain 4-tuple."""
+
+    body: int
+    kind: int
+    object_feature: int
+    hand_feature: int
 
 
 @dataclass(frozen=True)
@@ -45,8 +62,8 @@ class Contact:
         gap: signed gap at the returned state (``|gap| <= contact_tol``).
     """
 
-    body: str
-    kind: str
+    body: BodyName
+    kind: ContactKind
     point: np.ndarray
     normal: np.ndarray
     force: float
@@ -56,7 +73,7 @@ class Contact:
 
     @property
     def key(self) -> ContactKey:
-        return (
+        return ContactKey(
             BODY_NAMES.index(self.body),
             KIND_NAMES.index(self.kind),
             self.object_feature,
@@ -84,9 +101,9 @@ class Event:
         contacts: the contacts involved, as ``(body, kind, object_feature, hand_feature)`` keys.
     """
 
-    kind: str
+    kind: EventKind
     s: float
-    contacts: tuple[tuple[int, int, int, int], ...] = ()
+    contacts: tuple[ContactKey, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "s", float(self.s))  # a plain float, not a numpy scalar

@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -55,6 +56,20 @@ RANDOM_START_TRIES = 50
 _STARTS = ("scene", "preliftoff", "random")
 _OPTION_KEYS = ("scene", "palm", "fingers")
 _REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
+
+
+@dataclass(slots=True)
+class Analysis:
+    """What the env derives from a state for its observation, reward and info."""
+
+    on_support: bool
+    form_closure: bool
+    grip: float  #: y*, or NaN where it is not computed
+    success: bool  #: form closure off the support
+    in_palm_frame: tuple[float, float, float]  #: the object's pose in the palm frame
+    out_of_reach: bool
+    #: the observation's contact block, filled by the first observation of these contacts
+    contact_obs: list[float] | None = None
 
 
 class FrictionlessGraspEnv(gym.Env):
@@ -337,7 +352,7 @@ class FrictionlessGraspEnv(gym.Env):
         self._renderer = None
         self._sim: Simulator | None = None
         self._state: State | None = None
-        self._analysis: dict[str, Any] = {}
+        self._analysis: Analysis | None = None
         self._steps = 0
 
     # ------------------------------------------------------------------ public accessors
@@ -467,7 +482,7 @@ class FrictionlessGraspEnv(gym.Env):
         self._palm_box = self._palm_limits(state.scene)
         self._analysis = analysis
         self._y0 = float(state.object_pose[1])
-        self._left_support = not self._analysis["on_support"]
+        self._left_support = not self._analysis.on_support
         self._success_rewarded = False
         self._phi = self._potential(state)
         info = self._info(state, dropped=False, reward_info=dict.fromkeys(_REWARD_KEYS, 0.0))
@@ -555,8 +570,8 @@ class FrictionlessGraspEnv(gym.Env):
             return self._get_obs(), float(reward_info["reward_lift"]), True, False, info
 
         analysis = self._analyse(new, self._analysis if _same_contacts(new, state) else None)
-        dropped = (analysis["on_support"] and self._left_support) or analysis["out_of_reach"]
-        self._left_support |= not analysis["on_support"]
+        dropped = (analysis.on_support and self._left_support) or analysis.out_of_reach
+        self._left_support |= not analysis.on_support
         self._state, self._analysis = new, analysis
         reward, reward_info = self._get_rew(new, a, dropped)
         info = self._info(new, dropped=dropped, reward_info=reward_info)
@@ -616,25 +631,26 @@ class FrictionlessGraspEnv(gym.Env):
         step = [float(m) * u for m, u in zip(self.max_palm_step, (w, w, 1.0), strict=True)]
         return low, high, step
 
-    def _analyse(self, state: State, same_contacts: dict | None = None) -> dict[str, Any]:
+    def _analyse(self, state: State, same_contacts: Analysis | None = None) -> Analysis:
         """Form closure (always), y* (only when needed) and where the object is.
 
         ``same_contacts``: the analysis of a state with the same object pose and contacts
-        (:func:`_same_contacts`), whose contact-dependent entries are kept instead of
+        (:func:`_same_contacts`), whose contact-dependent fields are kept instead of
         computed again.
         """
-        if same_contacts is None:
-            on_support = state.on_support
-            # Planar form closure needs at least four frictionless contacts: skip the LP below.
-            closure = len(state.contacts) >= 4 and is_form_closure(state)
-            grip = grip_objective(state) if closure or self.always_compute_grip else math.nan
-            an = {"on_support": on_support, "form_closure": closure, "grip": grip,
-                  "success": closure and not on_support, "contact_obs": None}  # fmt: skip
-        else:
-            an = same_contacts.copy()
-        p_P = an["in_palm_frame"] = in_palm_frame(state)
-        an["out_of_reach"] = max(abs(p_P[0]), abs(p_P[1])) > REACH * state.scene.palm.width
-        return an
+        p_P = in_palm_frame(state)
+        out_of_reach = max(abs(p_P[0]), abs(p_P[1])) > REACH * state.scene.palm.width
+        if same_contacts is not None:
+            an = same_contacts
+            return Analysis(
+                an.on_support, an.form_closure, an.grip, an.success, p_P, out_of_reach,
+                an.contact_obs,
+            )  # fmt: skip
+        on_support = state.on_support
+        # Planar form closure needs at least four frictionless contacts: skip the LP below.
+        closure = len(state.contacts) >= 4 and is_form_closure(state)
+        grip = grip_objective(state) if closure or self.always_compute_grip else math.nan
+        return Analysis(on_support, closure, grip, closure and not on_support, p_P, out_of_reach)
 
     def _potential(self, state: State) -> float:
         height = (state.object_pose[1] - self._y0) / state.scene.palm.width
@@ -643,11 +659,11 @@ class FrictionlessGraspEnv(gym.Env):
     def _get_rew(self, state: State, a: list[float], dropped: bool) -> tuple[float, dict]:
         weights, an = self.reward_weights, self._analysis
         bonus = 0.0
-        if an["success"] and not self._success_rewarded:
+        if an.success and not self._success_rewarded:
             bonus, self._success_rewarded = weights["form_closure"], True
         grip = 0.0
-        if an["success"] and math.isfinite(an["grip"]):
-            y = min(an["grip"] / state.scene.object_weight, GRIP_MAX)
+        if an.success and math.isfinite(an.grip):
+            y = min(an.grip / state.scene.object_weight, GRIP_MAX)
             grip = weights["grip"] * (1.0 - y / GRIP_MAX)
         phi = 0.0 if dropped else self._potential(state)
         lift = self.gamma * phi - self._phi
@@ -669,29 +685,29 @@ class FrictionlessGraspEnv(gym.Env):
         x0 = scene.object.start_pose[0]
         x_p, y_p, th_p, q1, q2 = state.hand.tolist()
         x_o, y_o, th_o = state.object_pose.tolist()
-        p_P = an["in_palm_frame"]
-        grip = an["grip"] / weight if an["form_closure"] else GRIP_MAX
+        p_P = an.in_palm_frame
+        grip = an.grip / weight if an.form_closure else GRIP_MAX
         obs = self._obs_buffer  # the object's padded vertices and mask are set at reset
         obs[:13] = (
             (x_p - x0) / w, y_p / w, th_p, q1, q2,
             (x_o - x0) / w, y_o / w, math.sin(th_o), math.cos(th_o),
             p_P[0] / w, p_P[1] / w, math.sin(p_P[2]), math.cos(p_P[2]),
         )  # fmt: skip
-        if an["contact_obs"] is None:  # new contacts (else the buffer holds them already)
+        if an.contact_obs is None:  # new contacts (else the buffer holds them already)
             contacts = [0.0] * (2 * len(BODIES))
             for c in state.contacts:
                 k = BODY_INDEX[c.body]
                 contacts[k] += 1.0
                 contacts[k + 1] += c.force / weight
             contacts += (
-                float(an["form_closure"]),
+                float(an.form_closure),
                 grip if math.isfinite(grip) else GRIP_MAX,
                 (y_o - self._y0) / w,
             )
-            obs[self._contacts_at :] = an["contact_obs"] = contacts
-        elif self._obs_contacts is not an["contact_obs"]:
-            obs[self._contacts_at :] = an["contact_obs"]
-        self._obs_contacts = an["contact_obs"]
+            obs[self._contacts_at :] = an.contact_obs = contacts
+        elif self._obs_contacts is not an.contact_obs:
+            obs[self._contacts_at :] = an.contact_obs
+        self._obs_contacts = an.contact_obs
         clipped = np.maximum(obs, self._obs_low)
         return np.minimum(clipped, self._obs_high, out=clipped)
 
@@ -713,17 +729,17 @@ class FrictionlessGraspEnv(gym.Env):
             "palm_pose": state.palm_pose.copy(),
             "finger_angles": state.finger_angles.copy(),
             "contacts": [c.as_dict() for c in state.contacts],
-            "form_closure": bool(an["form_closure"]),
-            "grip_force": float(an["grip"]) if an["form_closure"] else math.inf,
+            "form_closure": bool(an.form_closure),
+            "grip_force": float(an.grip) if an.form_closure else math.inf,
             "jammed": bool(state.jammed),
             "hand_blocked": bool(state.hand_blocked),
             "dropped": bool(dropped),
             "events": [e.kind for e in state.events],
-            "is_success": bool(an["success"]),
+            "is_success": bool(an.success),
             **reward_info,
         }
         if self.always_compute_grip:
-            info["grip_objective"] = float(an["grip"])
+            info["grip_objective"] = float(an.grip)
         return info
 
     # ------------------------------------------------------------------ rendering
@@ -749,8 +765,8 @@ class FrictionlessGraspEnv(gym.Env):
     def _caption(self) -> str:
         an = self._analysis
         text = f"{self._state.scene.name} | step {self._steps}"
-        if an["form_closure"]:
-            y = an["grip"] / self._state.scene.object_weight
+        if an.form_closure:
+            y = an.grip / self._state.scene.object_weight
             text += f" | form closure | y* = {y:.2f} W"
         else:
             text += " | no form closure"

@@ -100,13 +100,14 @@ def detect(pl: Placement, tol: float, exclude: set = frozenset()) -> list[Contac
         else np.zeros((0, 4), dtype=np.int64)
     )
     keys = detection.detect(pl.world, local.n_object, local.n_vertices, tol, ex)
-    return [tuple(k) for k in keys.tolist()]
+    return [ContactKey(*k) for k in keys.tolist()]
 
 
 def vertex_of(key: ContactKey) -> tuple[int, int, int]:
     """The (body, kind, vertex) a contact key pins: the object vertex of an edge contact or the
     hand vertex of a tip contact."""
-    return (key[0], key[1], key[2] if key[1] == EDGE else key[3])
+    body, kind, object_feature, hand_feature = key
+    return (body, kind, object_feature if kind == EDGE else hand_feature)
 
 
 def min_gap(
@@ -126,6 +127,4 @@ def min_gap(
         np.array((0, 1, 2, 3) if bodies is None else bodies, dtype=np.int64),
         np.array(sorted(exclude), dtype=np.int64).reshape(-1, 3),
     )
-    return float(gap), (
-        None if key[0] < 0 else (int(key[0]), int(key[1]), int(key[2]), int(key[3]))
-    )
+    return float(gap), (None if key[0] < 0 else ContactKey(*(int(k) for k in key)))

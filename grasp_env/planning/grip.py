@@ -10,7 +10,7 @@ import numpy as np
 
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
-from grasp_env.core.state import KIND_NAMES, Contact, State
+from grasp_env.core.state import KIND_NAMES, Contact, ContactKey, State
 from grasp_env.mechanics import closure as mech
 from grasp_env.mechanics import contacts as ct
 from grasp_env.planning.plan import (
@@ -35,9 +35,10 @@ class FourContactBranch:
     """
 
     def __init__(
-        self, sim: Simulator, keys: list, hand: np.ndarray, kept: tuple[int, ...] = ()
+        self, sim: Simulator, keys: list[ContactKey], hand: np.ndarray, kept: tuple[int, ...] = ()
     ) -> None:
-        self.sim, self.keys, self.hand = sim, list(keys), hand.copy()
+        self.sim, self.hand = sim, hand.copy()
+        self.keys = [ContactKey(*k) for k in keys]
         self.kept = tuple(kept)  # indices of the keys among the contacts it was built from
 
     def solve(self, q1: float, z0: np.ndarray) -> np.ndarray | None:
@@ -52,7 +53,7 @@ class FourContactBranch:
             for i, key in enumerate(self.keys):
                 p, n, F[i], _, _ = pl.evaluate(key)
                 J[i, :3] = mech.V_ob(p[None], n[None], z[:2])[0]
-                if key[0] == geo.FINGER2:
+                if key.body == geo.FINGER2:
                     J[i, 3] = -float(geo.cross2(p - joint2, n))
             if np.abs(F).max() <= sim.newton_tol:
                 return z
@@ -91,13 +92,13 @@ class FourContactBranch:
                 return None
             contacts.append(
                 Contact(
-                    geo.BODY_NAMES[key[0]],
-                    KIND_NAMES[key[1]],
+                    geo.BODY_NAMES[key.body],
+                    KIND_NAMES[key.kind],
                     p.copy(),
                     n.copy(),
                     0.0,
-                    key[2],
-                    key[3],
+                    key.object_feature,
+                    key.hand_feature,
                     float(g),
                 )
             )

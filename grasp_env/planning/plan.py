@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -52,6 +53,10 @@ class BranchProbe:
     chosen: float | None = None
 
 
+#: How a plan ended (:attr:`Plan.status`).
+PlanStatus = Literal["form_closure", "not_tippable", "stuck", "error"]
+
+
 @dataclass
 class Plan:
     """A grasp plan: its steps, how it ended, and the phase boundaries.
@@ -70,7 +75,7 @@ class Plan:
     """
 
     steps: list[PlanStep] = field(default_factory=list)
-    status: str = "error"
+    status: PlanStatus = "error"
     message: str = ""
     placement: str = ""
     cpu_time: float = 0.0

@@ -188,7 +188,7 @@ def close_until_touch(sim: Simulator, state: State, step: float = PRELIFTOFF_STE
             e.s
             for e in new.events
             if e.kind == "new_contact"
-            and any(k[0] in (geo.FINGER1, geo.FINGER2) for k in e.contacts)
+            and any(k.body in (geo.FINGER1, geo.FINGER2) for k in e.contacts)
         ]
         if touch and min(touch) < 1.0:
             new = sim.move_hand(state, fingers=q + min(touch) * (target - q))

@@ -67,6 +67,7 @@ import numpy as np
 
 from grasp_env.errors import SolverError
 from grasp_env.solvers import velocity_lp
+from grasp_env.solvers.lp import LPStatus
 from grasp_env.solvers.velocity_lp import FEAS_TOL, RANK_TOL, SINGULAR_TOL
 
 __all__ = [
@@ -102,7 +103,7 @@ class FastLPResult:
             ``V d >= 0`` and ``c^T d < 0``; None when optimal.
     """
 
-    status: str
+    status: LPStatus
     v: np.ndarray | None
     lam: np.ndarray | None
     value: float

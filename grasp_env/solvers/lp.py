@@ -8,12 +8,15 @@ inequality and equality rows, so a faster specialised solver can replace it behi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from grasp_env.errors import SolverError
 
-_STATUS = {0: "optimal", 2: "infeasible", 3: "unbounded"}
+#: How an LP ended.
+LPStatus = Literal["optimal", "infeasible", "unbounded"]
+_STATUS: dict[int, LPStatus] = {0: "optimal", 2: "infeasible", 3: "unbounded"}
 
 
 @dataclass(frozen=True)
@@ -24,7 +27,7 @@ class LPResult:
     ``b_eq`` (HiGHS marginals); they are ``None`` unless the status is ``"optimal"``.
     """
 
-    status: str
+    status: LPStatus
     x: np.ndarray | None
     value: float
     duals_ub: np.ndarray | None = None

@@ -10,6 +10,7 @@ import numpy as np
 
 from grasp_env.errors import SolverError
 from grasp_env.solvers import fastlp, lp
+from grasp_env.solvers.lp import LPStatus
 
 
 @dataclass(frozen=True)
@@ -25,7 +26,7 @@ class MotionLP:
         value: the common optimum ``m g^T dq_ob = xi^T lambda`` (duality).
     """
 
-    status: str
+    status: LPStatus
     velocity: np.ndarray | None
     forces: np.ndarray | None
     value: float

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import grasp_env
-from grasp_env.core.state import EDGE, TIP
+from grasp_env.core.state import EDGE, TIP, ContactKey
 from grasp_env.mechanics import contacts as ct
 
 SCENES = ("fig13", "square", "triangle", "hexagon", "pentagon", "flat_trapezoid")
@@ -211,6 +211,10 @@ def test_flush_edge_ending_at_a_fingertip() -> None:
     assert released == [(3, EDGE, 2, 3), (3, TIP, 1, 0)]
 
 
-def test_keys_are_tuples_of_python_ints() -> None:
+def test_keys_are_named_tuples_of_python_ints() -> None:
+    """Keys are ContactKeys of Python ints: they compare and hash as plain 4-tuples."""
     keys = ct.detect(*square_on_fingertip())
-    assert keys and all(type(k) is tuple and all(type(x) is int for x in k) for k in keys)
+    assert keys and all(type(k) is ContactKey and all(type(x) is int for x in k) for k in keys)
+    k = keys[0]
+    assert k == tuple(k) and hash(k) == hash(tuple(k))
+    assert (k.body, k.kind, k.object_feature, k.hand_feature) == tuple(k)
