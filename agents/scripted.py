@@ -258,9 +258,9 @@ class ScriptedPolicy:
         if not planning.both_fingers_touch(state):
             state = planning.close_until_touch(sim, state)
             plan.steps.append(planning.PlanStep("pre-liftoff", state, math.nan, "closing"))
-        state = planning.lift(sim, state, plan, self.dq)
+        state = plan.add(planning.lift(sim, state, self.dq))
         if plan.success:
-            planning.adjust_grip(sim, state, plan)
+            plan.add(planning.adjust_grip(sim, state))
         return plan
 
     def _use(
@@ -340,12 +340,13 @@ class ScriptedPolicy:
             increments.append(dh)
         plan = planning.Plan()
         plan.steps.append(planning.PlanStep("pre-liftoff", state, math.nan, "env state"))
-        end, increments = planning.explore(
-            base.simulator, plan, (states, increments), EXPLORE_MOVES, move
+        phase, increments = planning.explore(
+            base.simulator, (states, increments), EXPLORE_MOVES, move
         )
+        end = plan.add(phase)
         if not plan.success:
             return
-        planning.adjust_grip(base.simulator, end, plan)
+        plan.add(planning.adjust_grip(base.simulator, end))
         self._use(plan, [], increments)
 
     def _full_plan(self, sim: Simulator) -> planning.Plan:

@@ -23,6 +23,7 @@ from grasp_env.planning.lifting import lift
 from grasp_env.planning.plan import (
     PHASES,
     BranchProbe,
+    PhaseResult,
     Plan,
     PlanStep,
     both_fingers_touch,
@@ -45,6 +46,7 @@ __all__ = [
     "PHASES",
     "BranchProbe",
     "FourContactBranch",
+    "PhaseResult",
     "Plan",
     "PlanStep",
     "adjust_grip",

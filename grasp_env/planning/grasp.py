@@ -16,7 +16,15 @@ from grasp_env.mechanics.tippability import tippability_regions
 from grasp_env.planning import regrasp
 from grasp_env.planning.grip import adjust_grip
 from grasp_env.planning.lifting import lift
-from grasp_env.planning.plan import Plan, PlanStep, event_note, grasped, grip_if_closed, try_move
+from grasp_env.planning.plan import (
+    PhaseResult,
+    Plan,
+    PlanStep,
+    event_note,
+    grasped,
+    grip_if_closed,
+    try_move,
+)
 from grasp_env.planning.preliftoff import (
     PALM_ANGLES,
     centred_placement,
@@ -85,7 +93,7 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         log.info("lifting from the %s placement", placement)
         plan.steps = [PlanStep("pre-liftoff", state, grip_if_closed(state), placement)]
         plan.placement = placement
-        state = lift(sim, state, plan, dq)
+        state = plan.add(lift(sim, state, dq))
         if plan.success:
             break
         log.info("  %s", plan.message)
@@ -99,7 +107,8 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         log.info("exploratory lifting with palm motion (up to %d moves)", explore_moves)
         plan.steps = [PlanStep("pre-liftoff", centred, grip_if_closed(centred), "centred")]
         plan.placement = "centred, exploratory lifting"
-        state, _ = explore(sim, plan, ([centred], []), explore_moves)
+        phase, _ = explore(sim, ([centred], []), explore_moves)
+        state = plan.add(phase)
         if not plan.success:
             failed.append(plan.message)
     if not plan.success:
@@ -109,25 +118,24 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         plan.message += f" (after re-placement; {'; '.join(failed)})"
     if adjust:
         log.info("form closure at step %d; grip adjustment", len(plan.steps) - 1)
-        adjust_grip(sim, state, plan)
+        plan.add(adjust_grip(sim, state))
 
 
 def explore(
     sim: Simulator,
-    plan: Plan,
     lead: tuple[list[State], list[np.ndarray]],
     max_moves: int = EXPLORE_MOVES,
     move: regrasp.Move | None = None,
-) -> tuple[State, list[np.ndarray]]:
+) -> tuple[PhaseResult, list[np.ndarray]]:
     """Exploratory lifting with palm motion (:mod:`grasp_env.regrasp`): a seeded search over
     finger increments, palm translations and palm turns for form closure with the object off
     the support, from the last state of ``lead`` (states and the hand increments between
     them), the whole path then shortened.
 
     ``move`` simulates a hand increment (default: one straight simulator move; the scripted
-    policy passes the env's own step). Appends the path after ``lead``'s first state to
-    ``plan`` as lifting steps noted ``explore`` and sets its status; returns the last state
-    and the path's hand increments."""
+    policy passes the env's own step). Returns the path after ``lead``'s first state as
+    lifting steps noted ``explore`` (status ``"form_closure"``, else ``"stuck"`` and no
+    steps), and the path's hand increments."""
     if move is None:
 
         def move(st: State, dh: np.ndarray) -> State | None:
@@ -137,19 +145,20 @@ def explore(
     states, increments = lead
     found = regrasp.explore_lift(states[-1], move, grasped, max_moves=max_moves)
     if found.states is None:
-        plan.status = "stuck"
-        plan.message = f"exploratory lifting found no grasp in {found.moves} moves"
-        return states[-1], []
+        message = f"exploratory lifting found no grasp in {found.moves} moves"
+        return PhaseResult((), states[-1], "stuck", message), []
     walk = len(states) - 1 + len(found.states) - 1
     states, increments = regrasp.shorten(
         states + found.states[1:], increments + found.increments, move, grasped
     )
-    for st in states[1:]:
-        note = ", ".join(filter(None, ("explore", event_note(st))))
-        plan.steps.append(PlanStep("lifting", st, grip_if_closed(st), note))
-    plan.status = "form_closure"
-    plan.message = (
+    steps = tuple(
+        PlanStep(
+            "lifting", st, grip_if_closed(st), ", ".join(filter(None, ("explore", event_note(st))))
+        )
+        for st in states[1:]
+    )
+    message = (
         f"form closure reached by exploratory lifting with palm motion ({found.moves} moves "
         f"searched, path of {walk} shortened to {len(states) - 1})"
     )
-    return states[-1], increments
+    return PhaseResult(steps, states[-1], "form_closure", message), increments

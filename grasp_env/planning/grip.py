@@ -15,7 +15,7 @@ from grasp_env.mechanics import closure as mech
 from grasp_env.mechanics import contacts as ct
 from grasp_env.planning.plan import (
     BranchProbe,
-    Plan,
+    PhaseResult,
     PlanStep,
     event_note,
     grasped,
@@ -129,12 +129,11 @@ def _branches(sim: Simulator, state: State) -> list[FourContactBranch]:
 def adjust_grip(
     sim: Simulator,
     state: State,
-    plan: Plan,
     eps: float = 1e-4,
     alpha: float = 1.0,
     max_dq: float = 0.02,
     max_steps: int = 200,
-) -> State:
+) -> PhaseResult:
     """Grip-adjustment phase: descend ``y*`` along the four-contact branches (eq. 37).
 
     Each step takes ``q1 <- q1 - alpha (dy*/dq1) / W`` (``W`` the object's weight; a
@@ -147,9 +146,12 @@ def adjust_grip(
     may leave form closure for a moment), kept if the grasp ends closed off the support and
     ``y*`` falls (the plan then replays exactly). Stops when no branch lowers ``y*`` at a
     step of ``eps`` either way, or no such move keeps the grasp (the plan's message says
-    which). Every ``y*`` it evaluates on a branch is recorded in ``plan.grip_probes`` (for
-    plots; the decisions do not read it).
+    which). Every ``y*`` it evaluates on a branch is recorded in the result's
+    ``grip_probes`` (for plots; the decisions do not read it), each with ``step`` counted
+    from the phase's starting state (:meth:`Plan.add` makes it an index into the plan).
     """
+    steps: list[PlanStep] = []
+    all_probes: list[BranchProbe] = []
     y = mech.grip_objective(state)
     z = np.array([*state.object_pose, state.hand[4]])
     q1 = float(state.hand[3])
@@ -158,8 +160,8 @@ def adjust_grip(
         candidates = []
         probes = {}
         for br in _branches(sim, state):
-            probe = probes[id(br)] = BranchProbe(len(plan.steps) - 1, br.kept, start=(q1, y))
-            plan.grip_probes.append(probe)
+            probe = probes[id(br)] = BranchProbe(len(steps), br.kept, start=(q1, y))
+            all_probes.append(probe)
             # the branch is usable only in directions where it stays valid and y* falls
             for sign in (1.0, -1.0):
                 y_nb, z_nb = br.grip(q1 + sign * eps, z)
@@ -186,20 +188,20 @@ def adjust_grip(
                 probes[id(br)].chosen = q1_new
                 break
         else:
-            plan.message = (
+            message = (
                 "form closure reached; y* falls along a four-contact branch, but the hand "
                 "cannot follow it"
                 if candidates
                 else "form closure reached; y* at a local minimum"
             )
-            return state
+            return PhaseResult(tuple(steps), state, None, message, tuple(all_probes))
         for via in moves[:-1]:
-            plan.steps.append(PlanStep("grip adjustment", via, grip_if_closed(via), "via"))
+            steps.append(PlanStep("grip adjustment", via, grip_if_closed(via), "via"))
         state, y = moves[-1], y_moved
         z, q1 = np.array([*state.object_pose, state.hand[4]]), float(state.hand[3])
-        plan.steps.append(PlanStep("grip adjustment", state, y, event_note(state)))
-    plan.message = f"grip adjustment stopped after {max_steps} steps"
-    return state
+        steps.append(PlanStep("grip adjustment", state, y, event_note(state)))
+    message = f"grip adjustment stopped after {max_steps} steps"
+    return PhaseResult(tuple(steps), state, None, message, tuple(all_probes))
 
 
 def _record(probe: BranchProbe, q1: float, y: float, z: np.ndarray | None) -> None:

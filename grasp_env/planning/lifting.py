@@ -11,7 +11,7 @@ import numpy as np
 from grasp_env.core.state import State
 from grasp_env.mechanics.width import object_width
 from grasp_env.planning.plan import (
-    Plan,
+    PhaseResult,
     PlanStep,
     event_note,
     finger_gap,
@@ -45,9 +45,10 @@ PATIENCE = 5
 PROGRESS_TOL = 5e-3
 
 
-def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: int = 300) -> State:
+def lift(sim: Simulator, state: State, dq: float = 0.02, max_steps: int = 300) -> PhaseResult:
     """Lifting phase: finger increments that move the object toward the palm, until form
-    closure with the object off the support. The palm stays fixed, as in the paper.
+    closure with the object off the support (status ``"form_closure"``, else ``"stuck"``).
+    The palm stays fixed, as in the paper.
 
     Every step first tries the paper's squeeze, both fingers closing at equal rates by ``dq``.
     It is taken unless it jams the hand or has not brought the object closer to the palm than
@@ -62,6 +63,7 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
     narrower than the object's width to wider (Toussaint's no-drop condition: while ``d < w``
     it cannot drop), or if the simulator cannot follow it.
     """
+    steps: list[PlanStep] = []
     width = object_width(sim.scene)
     squeeze = np.array([dq, -dq])
     moves = [np.array(m) * dq for m in ALTERNATIVES]
@@ -69,8 +71,7 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
     lifted = not state.on_support
     for _ in range(max_steps):
         if grasped(state):
-            plan.status, plan.message = "form_closure", "form closure reached"
-            return state
+            return PhaseResult(tuple(steps), state, "form_closure", "form closure reached")
 
         chosen = None
         nxt = try_fingers(sim, state, squeeze)
@@ -100,18 +101,17 @@ def lift(sim: Simulator, state: State, plan: Plan, dq: float = 0.02, max_steps: 
             ):
                 chosen = best[1]
         if chosen is None:
-            plan.status = "stuck"
-            plan.message = "no lifting increment brings the object closer to the palm"
-            return state
+            message = "no lifting increment brings the object closer to the palm"
+            return PhaseResult(tuple(steps), state, "stuck", message)
         for state in chosen:
             lifted = lifted or not state.on_support
-            plan.steps.append(PlanStep("lifting", state, grip_if_closed(state), event_note(state)))
+            steps.append(PlanStep("lifting", state, grip_if_closed(state), event_note(state)))
         if palm_distance(state) < record - PROGRESS_TOL * sim.size:
             record, since_record = palm_distance(state), 0
         else:
             since_record += 1
-    plan.status, plan.message = "stuck", f"no form closure after {max_steps} lifting steps"
-    return state
+    message = f"no form closure after {max_steps} lifting steps"
+    return PhaseResult(tuple(steps), state, "stuck", message)
 
 
 def _admissible(nxt: State | None, prev: State, lifted: bool, width: float) -> bool:

@@ -5,7 +5,7 @@ admissible, whether the object is grasped."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -35,7 +35,8 @@ class BranchProbe:
     """One grip-adjustment step's evaluation of one four-contact branch (a record only).
 
     Attributes:
-        step: index in ``Plan.steps`` of the state the step started from.
+        step: index in ``Plan.steps`` of the state the step started from (in a
+            :class:`PhaseResult`, counted from the phase's starting state).
         kept: indices into that state's contacts of the four contacts the branch keeps.
         q1: finger 1 angles at which :func:`adjust_grip` evaluated ``y*`` on the branch (the
             ``eps`` probes either way, then the trial steps), in evaluation order; only where
@@ -55,6 +56,27 @@ class BranchProbe:
 
 #: How a plan ended (:attr:`Plan.status`).
 PlanStatus = Literal["form_closure", "not_tippable", "stuck", "error"]
+
+
+@dataclass(frozen=True)
+class PhaseResult:
+    """What one phase did: the steps it went through, the state it ended in, and how it
+    ended (``status`` None: the phase leaves the plan's status as it was, as grip adjustment
+    does, which starts and ends in form closure).
+
+    Attributes:
+        steps: the phase's steps, in order (not its starting state).
+        state: the state it ended in.
+        status: how it ended, or None.
+        message: a sentence on how it ended.
+        grip_probes: what grip adjustment evaluated (:class:`BranchProbe`).
+    """
+
+    steps: tuple[PlanStep, ...]
+    state: State
+    status: PlanStatus | None
+    message: str
+    grip_probes: tuple[BranchProbe, ...] = ()
 
 
 @dataclass
@@ -84,6 +106,17 @@ class Plan:
     @property
     def success(self) -> bool:
         return self.status == "form_closure"
+
+    def add(self, phase: PhaseResult) -> State:
+        """Append a phase's steps and take its outcome; returns the state it ended in. The
+        phase started from the plan's last step."""
+        start = len(self.steps) - 1
+        self.grip_probes.extend(replace(p, step=start + p.step) for p in phase.grip_probes)
+        self.steps.extend(phase.steps)
+        if phase.status is not None:
+            self.status = phase.status
+        self.message = phase.message
+        return phase.state
 
     def phase_bounds(self) -> dict[str, tuple[int, int]]:
         """First and last step index of each phase present."""
