@@ -46,7 +46,7 @@ import numpy as np
 from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
 from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
-from grasp_env.core.scene import bundled_scenes, load_scene
+from grasp_env.core.scene_loading import bundled_scenes, load_scene
 from grasp_env.errors import SolverError
 from grasp_env.mechanics import closure as mech
 from grasp_env.simulator import SimulationError, Simulator

@@ -31,7 +31,7 @@ def plan_one(seed: int) -> dict:
     import numpy as np
 
     from grasp_env import planning
-    from grasp_env.core.scene import load_scene
+    from grasp_env.core.scene_loading import load_scene
     from grasp_env.envs.shapes import random_shape_scene
     from grasp_env.mechanics import closure as mech
 

@@ -254,7 +254,7 @@ def random_stress_scene(
     """A random :func:`stress_scene` over the full stress ranges (for the soak): a kind drawn
     from ``kinds``, 3-12 vertices, diameter 0.05-0.8 palm widths, aspect 1..``MAX_ASPECT`` and
     density over ``DENSITY_RANGE`` (both log-uniform). ``description`` holds the kind."""
-    from grasp_env.core.scene import load_scene
+    from grasp_env.core.scene_loading import load_scene
     from grasp_env.errors import SceneError
 
     for _ in range(100):

@@ -7,7 +7,8 @@ environment ``FrictionlessGrasp-v0``.
 """
 
 from grasp_env import envs as _envs  # noqa: F401  (registers FrictionlessGrasp-v0)
-from grasp_env.core.scene import Scene, bundled_scenes, load_scene
+from grasp_env.core.scene import Scene
+from grasp_env.core.scene_loading import bundled_scenes, load_scene
 from grasp_env.core.state import Contact, Event, State
 from grasp_env.errors import SceneError, SolverError
 from grasp_env.mechanics.closure import (

@@ -30,7 +30,8 @@ import numpy as np
 from grasp_env.arguments import real_vector
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
-from grasp_env.core.scene import Scene, load_scene
+from grasp_env.core.scene import Scene
+from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import KIND_NAMES, Contact, ContactKey, Event, State
 from grasp_env.errors import SimulationError, SolverError, WorkLimitError
 from grasp_env.mechanics import closure as mech

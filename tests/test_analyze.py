@@ -101,7 +101,7 @@ def test_bad_scene_exits_2(arg, needle, capsys):
 
 
 def test_invalid_scene_file_names_field(tmp_path, capsys):
-    text = (grasp_env.core.scene.SCENES_DIR / "square.yaml").read_text()
+    text = (grasp_env.core.scene_loading.SCENES_DIR / "square.yaml").read_text()
     bad = tmp_path / "bad.yaml"
     bad.write_text(text.replace("width: 1.0", "width: -1.0"))
     assert main(["--scene", str(bad)]) == 2
@@ -110,7 +110,7 @@ def test_invalid_scene_file_names_field(tmp_path, capsys):
 
 
 def test_scene_path_accepted(capsys):
-    path = grasp_env.core.scene.SCENES_DIR / "triangle.yaml"
+    path = grasp_env.core.scene_loading.SCENES_DIR / "triangle.yaml"
     assert main(["--scene", str(path)]) == 0
     out = capsys.readouterr().out
     assert f"source: {path}" in out

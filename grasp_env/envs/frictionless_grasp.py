@@ -20,7 +20,8 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 
 from grasp_env.arguments import real_vector, short
-from grasp_env.core.scene import Scene, load_scene
+from grasp_env.core.scene import Scene
+from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import State
 from grasp_env.envs.checks import (
     flag,

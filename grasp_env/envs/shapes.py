@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 
 from grasp_env.core import geometry as geo
-from grasp_env.core.scene import Scene, load_scene
+from grasp_env.core.scene import Scene
+from grasp_env.core.scene_loading import load_scene
 from grasp_env.errors import SceneError
 from grasp_env.planning import centred_hand
 

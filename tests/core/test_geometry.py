@@ -13,7 +13,7 @@ import pytest
 from grasp_env import testing
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
-from grasp_env.core.scene import load_scene
+from grasp_env.core.scene_loading import load_scene
 
 
 def regular_polygon(n: int, radius: float, phase: float = 0.3) -> np.ndarray:

@@ -22,7 +22,8 @@ import pytest
 import yaml
 
 from grasp_env.core import scene as scene_mod
-from grasp_env.core.scene import Scene, bundled_scenes, load_scene, scene_from_dict
+from grasp_env.core.scene import Scene
+from grasp_env.core.scene_loading import bundled_scenes, load_scene, scene_from_dict
 from grasp_env.errors import SceneError
 
 SCENES_DIR = Path(__file__).resolve().parents[2] / "grasp_env" / "scenes"

@@ -10,7 +10,7 @@ import pytest
 
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
-from grasp_env.core.scene import load_scene
+from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import EDGE, TIP
 from grasp_env.mechanics import contacts as ct
 

@@ -21,7 +21,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
 from grasp_env.core import geometry as geo
-from grasp_env.core.scene import scene_from_dict
+from grasp_env.core.scene_loading import scene_from_dict
 from grasp_env.mechanics.tippability import support_contacts, tippability_regions
 
 # ----------------------------------------------------------------------------------------

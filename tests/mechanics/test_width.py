@@ -13,7 +13,7 @@ from scipy.optimize import minimize_scalar
 from scipy.spatial import ConvexHull, QhullError
 
 from grasp_env.core import geometry as geo
-from grasp_env.core.scene import scene_from_dict
+from grasp_env.core.scene_loading import scene_from_dict
 from grasp_env.mechanics.width import object_width, width_direction
 
 
