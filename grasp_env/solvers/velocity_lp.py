@@ -9,6 +9,10 @@ lexicographic order; of equally good candidates the first is kept. The method, t
 tolerances below and the choice among optimal bases are documented in
 :mod:`grasp_env.solvers.fastlp`, which wraps these kernels. Plain arithmetic in a fixed order
 (:mod:`grasp_env.solvers.dense`): no BLAS, the same bits on every machine.
+
+The searches for a basis, a Farkas vector and a descent ray are one algorithm sharing the row
+subsets, the tolerances and the tie-breaking, which is why they stay in one module, longer
+than the others.
 """
 
 from __future__ import annotations
