@@ -47,9 +47,9 @@ from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
 from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
-from grasp_env.errors import SolverError
+from grasp_env.errors import ComputationError
 from grasp_env.mechanics import closure as mech
-from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.simulator import Simulator
 
 #: Object pose deviation (relative to the object's size) from the plan that makes the
 #: policy re-plan from the env's state.
@@ -319,7 +319,7 @@ class ScriptedPolicy:
                     if new.on_support and not st.on_support:
                         return None  # a drop: the env would end the episode
                     st = new
-            except (SimulationError, SolverError):
+            except ComputationError:
                 return None
             return st
 

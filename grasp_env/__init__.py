@@ -10,7 +10,7 @@ from grasp_env import envs as _envs  # noqa: F401  (registers FrictionlessGrasp-
 from grasp_env.core.scene import Scene
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
 from grasp_env.core.state import Contact, Event, State
-from grasp_env.errors import SceneError, SolverError
+from grasp_env.errors import ComputationError, SceneError, SolverError
 from grasp_env.mechanics.closure import (
     escape_direction,
     grip_objective,
@@ -22,6 +22,7 @@ from grasp_env.mechanics.width import object_width
 from grasp_env.simulator import SimulationError, Simulator
 
 __all__ = [
+    "ComputationError",
     "Contact",
     "Event",
     "Scene",

@@ -7,7 +7,12 @@ class SceneError(ValueError):
     """A scene description is invalid; the message names the field and the value."""
 
 
-class SolverError(RuntimeError):
+class ComputationError(RuntimeError):
+    """A computation could not be completed: a solve failed (:class:`SolverError`) or a move
+    could not be followed (:class:`SimulationError`)."""
+
+
+class SolverError(ComputationError):
     """An LP or Newton solve failed; ``status`` says how (e.g. ``"infeasible"``)."""
 
     def __init__(self, message: str, status: str) -> None:
@@ -15,7 +20,7 @@ class SolverError(RuntimeError):
         self.status = status
 
 
-class SimulationError(RuntimeError):
+class SimulationError(ComputationError):
     """The simulator could not continue (a solve failed even on the fallbacks)."""
 
 

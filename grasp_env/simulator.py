@@ -33,7 +33,7 @@ from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import Scene
 from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import KIND_NAMES, Contact, ContactKey, Event, State
-from grasp_env.errors import SimulationError, SolverError, WorkLimitError
+from grasp_env.errors import ComputationError, SimulationError, WorkLimitError
 from grasp_env.mechanics import closure as mech
 from grasp_env.mechanics import contacts as ct
 from grasp_env.mechanics.width import object_width
@@ -254,7 +254,7 @@ class Simulator:
             )
         except WorkLimitError:
             raise  # the retry would do the same work again, and more
-        except (SimulationError, SolverError) as first:
+        except ComputationError as first:
             model = self.model
             careful = model._replace(
                 reference_lp=True, max_step=model.max_step / 4, fall_step=model.fall_step / 4
@@ -266,7 +266,7 @@ class Simulator:
                 )  # fmt: skip
             except WorkLimitError:
                 raise
-            except (SimulationError, SolverError) as second:
+            except ComputationError as second:
                 raise SimulationError(
                     f"move failed ({first}) and again on the reference path with smaller "
                     f"increments ({second})"

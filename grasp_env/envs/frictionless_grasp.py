@@ -44,10 +44,10 @@ from grasp_env.envs.observation import (
     observation_bounds,
 )
 from grasp_env.envs.shapes import hand_setup, random_shape_scene
-from grasp_env.errors import SolverError
+from grasp_env.errors import ComputationError
 from grasp_env.mechanics.closure import grip_objective, is_form_closure
 from grasp_env.planning import centred_placement
-from grasp_env.simulator import CONTACT_TOL_RANGE, SimulationError, Simulator
+from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator
 
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
 #: (rad), finger angles (rad).
@@ -530,7 +530,7 @@ class FrictionlessGraspEnv(gym.Env):
         error = None
         try:
             state = centred_placement(sim)
-        except (SimulationError, SolverError) as exc:
+        except ComputationError as exc:
             state = sim.settle(scene.object.start_pose, hand_setup(scene))
             error = f"pre-liftoff closing stopped: {exc}"
         if key is not None and error is None:
@@ -549,7 +549,7 @@ class FrictionlessGraspEnv(gym.Env):
             if placement_problem(scene, state.object_pose, h) is None:
                 try:
                     return sim.settle(state.object_pose, h)
-                except (SimulationError, SolverError):
+                except ComputationError:
                     continue  # draw another perturbation
         return state
 
@@ -562,7 +562,7 @@ class FrictionlessGraspEnv(gym.Env):
         self._steps += 1
         try:
             new = self._simulate(state, a)  # finite, or a SimulationError
-        except (SimulationError, SolverError) as exc:
+        except ComputationError as exc:
             reward_info = dict.fromkeys(_REWARD_KEYS, 0.0)
             reward_info["reward_lift"] = -self._phi  # Phi = 0 at a terminal state
             self._phi = 0.0

@@ -11,8 +11,8 @@ import numpy as np
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
-from grasp_env.errors import SolverError
-from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.errors import ComputationError
+from grasp_env.simulator import Simulator
 
 #: Finger openings (rad) from the placement's finger angles tried by :func:`approach_path`
 #: for the final descent, and the margin (palm widths) it keeps from the object in transit.
@@ -165,7 +165,7 @@ def _path_moves_nothing(sim: Simulator, state: State, path: list[np.ndarray]) ->
     try:
         for h in path:
             state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
-    except (SimulationError, SolverError):
+    except ComputationError:
         return False
     return bool(
         np.abs(state.hand - path[-1]).max() < 1e-9 * sim.size

@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from grasp_env.core.state import State
-from grasp_env.errors import SolverError
+from grasp_env.errors import ComputationError
 from grasp_env.mechanics.tippability import tippability_regions
 from grasp_env.planning import regrasp
 from grasp_env.planning.grip import adjust_grip
@@ -31,7 +31,7 @@ from grasp_env.planning.preliftoff import (
     squeeze_tips,
     tipping_placement,
 )
-from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.simulator import Simulator
 
 #: Progress of a plan (placements tried, exploration, grip adjustment) at INFO level.
 log = logging.getLogger(__name__)
@@ -58,7 +58,7 @@ def plan_grasp(
     plan = Plan()
     try:
         _plan(sim, plan, dq, adjust, explore_moves)
-    except (SimulationError, SolverError) as exc:
+    except ComputationError as exc:
         plan.status, plan.message = "error", f"simulation failed: {exc}"
     plan.cpu_time = time.process_time() - t0
     return plan

@@ -13,9 +13,9 @@ import numpy as np
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
-from grasp_env.errors import SolverError
+from grasp_env.errors import ComputationError
 from grasp_env.mechanics import closure as mech
-from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.simulator import Simulator
 
 PHASES = ("pre-liftoff", "lifting", "grip adjustment")
 
@@ -171,7 +171,7 @@ def try_move(sim: Simulator, state: State, **targets) -> State | None:
     tries another instead of giving up the whole plan."""
     try:
         return sim.move_hand(state, **targets)
-    except (SimulationError, SolverError):
+    except ComputationError:
         return None
 
 

@@ -13,11 +13,11 @@ import numpy as np
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
-from grasp_env.errors import SolverError
+from grasp_env.errors import ComputationError
 from grasp_env.mechanics import closure as mech
 from grasp_env.mechanics.tippability import tippability_regions
 from grasp_env.planning.plan import touching_bodies
-from grasp_env.simulator import SimulationError, Simulator
+from grasp_env.simulator import Simulator
 from grasp_env.solvers.motion_lp import motion_lp
 
 #: Gap between the hanging tip of the longer finger and the support in the centred
@@ -112,7 +112,7 @@ def tipping_placement(
                     continue
                 try:
                     state = sim.settle(q_obj, h)
-                except (SimulationError, SolverError):
+                except ComputationError:
                     continue
                 if np.abs(state.object_pose - q_obj).max() > 1e-9:
                     continue
