@@ -151,36 +151,48 @@ def check_state(
         descent: also solve the velocity LP for an admissible descent.
     """
     out = Check()
-    bad = out.violations
-    w = scene.palm.width
-    W = scene.object_weight
-    limit = tol + ROUNDING * w
     object_pose = np.asarray(object_pose, float)
     hand = np.asarray(hand, float)
     if not (np.all(np.isfinite(object_pose)) and np.all(np.isfinite(hand))):
-        bad.append(f"nan: object {object_pose.tolist()}, hand {hand.tolist()}")
+        out.violations.append(f"nan: object {object_pose.tolist()}, hand {hand.tolist()}")
         return out
+    limit = tol + ROUNDING * scene.palm.width
     obj = object_polygon_W(scene, object_pose)
-    size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
-    com = object_pose[:2]
     bodies = hand_polygons_W(scene, hand)
+    depths = _check_penetration(out, scene, obj, bodies, limit)
+    P, N, C = _check_contacts(out, scene, obj, bodies, contacts, tol, limit)
+    _check_listed(out, obj, bodies, depths, contacts, limit)
+    if all(not v.startswith("nan") for v in out.violations):
+        _check_equilibrium(out, scene, object_pose[:2], P, N, C, descent)
+    return out
 
-    # Penetration.
+
+def _check_penetration(out: Check, scene: Any, obj, bodies: dict, limit: float) -> dict:
+    """No overlap of the object with the support or a hand body, and no hand vertex below the
+    support; returns each body's separating-axis depth."""
+    w = scene.palm.width
     depth = -float(obj[:, 1].min())
     out.penetration = depth / w
     if depth > limit:
-        bad.append(f"penetration: object {depth:.3e} below the support")
+        out.violations.append(f"penetration: object {depth:.3e} below the support")
     depths = {}
     for name, poly in bodies.items():
         d = depths[name] = sat_depth(obj, poly)
         out.penetration = max(out.penetration, d / w)
         if d > limit:
-            bad.append(f"penetration: object and {name} overlap by {d:.3e}")
+            out.violations.append(f"penetration: object and {name} overlap by {d:.3e}")
         low = float(poly[:, 1].min())
         if low < -limit:
-            bad.append(f"penetration: {name} vertex at y = {low:.3e} below the support")
+            out.violations.append(f"penetration: {name} vertex at y = {low:.3e} below the support")
+    return depths
 
-    # Listed contacts.
+
+def _check_contacts(out: Check, scene: Any, obj, bodies: dict, contacts: list, tol, limit):
+    """Every listed contact is real: finite, a non-negative force, a unit normal, the point on
+    both boundaries and a vertex of the side its kind names, the normal that of an edge
+    through the point, ``|gap| <= tol``. Returns the points, normals and forces."""
+    bad = out.violations
+    w = scene.palm.width
     P = np.zeros((len(contacts), 2))
     N = np.zeros((len(contacts), 2))
     C = np.zeros(len(contacts))
@@ -207,38 +219,49 @@ def check_state(
             if np.abs(n - (0.0, 1.0)).max() > NORMAL_TOL:
                 bad.append(f"contact: {where}: support normal {n.tolist()}")
         elif body in bodies:
-            poly = bodies[body]
-            if boundary_distance(p, poly) > limit:
-                bad.append(f"contact: {where}: point off the {body} boundary")
-            # edge kind: an object vertex on a hand edge whose outward normal is n;
-            # tip kind: a hand vertex on an object edge whose inward normal is n.
-            vert, feature, sign = (obj, poly, 1.0) if kind == "edge" else (poly, obj, -1.0)
-            v = vert[int(np.argmin(np.linalg.norm(vert - p, axis=1)))]
-            if np.linalg.norm(v - p) > limit:
-                bad.append(f"contact: {where}: point is not a vertex of the {kind} side")
-            gaps = [
-                float(m @ (v - a))
-                for a, b, m in edges(feature)
-                if np.abs(sign * m - n).max() < 1e-9 and segment_distance(p, a, b) <= limit
-            ]
-            if not gaps:
-                bad.append(f"contact: {where}: normal {n.tolist()} is not an edge's normal there")
+            gap = _hand_contact_gap(bad, where, obj, bodies[body], body, kind, p, n, limit)
+            if gap is None:
                 continue
-            gap = min(gaps, key=abs)
         else:
             bad.append(f"contact: unknown body {body!r}")
             continue
         out.gap = max(out.gap, abs(gap) / w)
         if abs(gap) > limit:
             bad.append(f"contact: {where}: |gap| {abs(gap):.3e} > tol {tol:.1e}")
+    return P, N, C
 
-    # Every touching vertex-body pair is listed (a contact of that body at that point).
+
+def _hand_contact_gap(bad: list, where: str, obj, poly, body: str, kind: str, p, n, limit):
+    """The gap of a contact with a hand body, or None (and a violation) if it is not one:
+    an edge contact is an object vertex on a hand edge whose outward normal is ``n``; a tip
+    contact a hand vertex on an object edge whose inward normal is ``n``."""
+    if boundary_distance(p, poly) > limit:
+        bad.append(f"contact: {where}: point off the {body} boundary")
+    vert, feature, sign = (obj, poly, 1.0) if kind == "edge" else (poly, obj, -1.0)
+    v = vert[int(np.argmin(np.linalg.norm(vert - p, axis=1)))]
+    if np.linalg.norm(v - p) > limit:
+        bad.append(f"contact: {where}: point is not a vertex of the {kind} side")
+    gaps = [
+        float(m @ (v - a))
+        for a, b, m in edges(feature)
+        if np.abs(sign * m - n).max() < 1e-9 and segment_distance(p, a, b) <= limit
+    ]
+    if not gaps:
+        bad.append(f"contact: {where}: normal {n.tolist()} is not an edge's normal there")
+        return None
+    return min(gaps, key=abs)
+
+
+def _check_listed(out: Check, obj, bodies: dict, depths: dict, contacts: list, limit) -> None:
+    """Every touching vertex-body pair is listed (a contact of that body at that point)."""
+
     def listed(body: str, p: np.ndarray) -> bool:
         return any(
             _get(c, "body") == body and np.abs(np.asarray(_get(c, "point")) - p).max() <= 4 * limit
             for c in contacts
         )
 
+    bad = out.violations
     for p in obj:
         if p[1] <= limit and not listed("support", p):
             bad.append(f"unlisted: object vertex {p.tolist()} touches the support")
@@ -252,37 +275,38 @@ def check_state(
             if dist <= limit and not listed(name, p):
                 bad.append(f"unlisted: {name} vertex {p.tolist()} touches the object")
 
-    # Equilibrium: sum c_i n_i + m g = 0 and the moment about the centre of mass.
-    if not bad or all(not v.startswith("nan") for v in bad):
-        force = C @ N + np.array([0.0, -W])
-        moment = sum(ci * cross(pi - com, ni) for ci, pi, ni in zip(C, P, N, strict=True))
-        out.residual = math.hypot(force[0], force[1], moment / size) / W
-        if not out.residual <= EQ_RTOL:
-            bad.append(f"equilibrium: residual {out.residual:.3e} x weight")
-        if descent and len(contacts):
-            # min W v_y s.t. V_ob v >= 0 (twists scaled by the object size, boxed): optimum 0.
-            V = np.column_stack(
-                [N, [cross(pi - com, ni) / size for pi, ni in zip(P, N, strict=True)]]
-            )
-            res = linprog(
-                [0.0, W, 0.0],
-                A_ub=-V,
-                b_ub=np.zeros(len(V)),
-                bounds=[(-1, 1)] * 3,
-                options={
-                    "primal_feasibility_tolerance": 1e-10,
-                    "dual_feasibility_tolerance": 1e-10,
-                },
-            )
-            if res.status != 0:
-                bad.append(f"equilibrium: descent LP failed: {res.message}")
-            else:
-                out.descent = float(res.fun) / W
-                if out.descent < -EQ_RTOL:
-                    bad.append(
-                        f"equilibrium: admissible descent W v_y = {out.descent:.3e} W along "
-                        f"(vx, vy, size w) = {res.x.tolist()}"
-                    )
-        elif descent:
-            bad.append("equilibrium: no contacts (nothing holds the object)")
-    return out
+
+def _check_equilibrium(out: Check, scene: Any, com, P, N, C, descent: bool) -> None:
+    """``sum c_i n_i + m g = 0`` with the moment about the centre of mass, and (``descent``)
+    no admissible descent: ``min W v_y s.t. V_ob v >= 0`` (twists scaled by the object size,
+    boxed) has optimum 0."""
+    bad = out.violations
+    W = scene.object_weight
+    size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
+    force = C @ N + np.array([0.0, -W])
+    moment = sum(ci * cross(pi - com, ni) for ci, pi, ni in zip(C, P, N, strict=True))
+    out.residual = math.hypot(force[0], force[1], moment / size) / W
+    if not out.residual <= EQ_RTOL:
+        bad.append(f"equilibrium: residual {out.residual:.3e} x weight")
+    if not descent:
+        return
+    if not len(C):
+        bad.append("equilibrium: no contacts (nothing holds the object)")
+        return
+    V = np.column_stack([N, [cross(pi - com, ni) / size for pi, ni in zip(P, N, strict=True)]])
+    res = linprog(
+        [0.0, W, 0.0],
+        A_ub=-V,
+        b_ub=np.zeros(len(V)),
+        bounds=[(-1, 1)] * 3,
+        options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10},
+    )
+    if res.status != 0:
+        bad.append(f"equilibrium: descent LP failed: {res.message}")
+        return
+    out.descent = float(res.fun) / W
+    if out.descent < -EQ_RTOL:
+        bad.append(
+            f"equilibrium: admissible descent W v_y = {out.descent:.3e} W along "
+            f"(vx, vy, size w) = {res.x.tolist()}"
+        )
