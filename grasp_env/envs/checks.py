@@ -46,6 +46,24 @@ def flag(value: Any, name: str) -> bool:
     return bool(value)
 
 
+def integer(value: Any, name: str, least: int, wrong_type: type = ValueError) -> int:
+    """An int (not a bool) of at least ``least``; ``wrong_type`` for a non-integer, else
+    ``ValueError``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise wrong_type(f"{name} must be an integer >= {least}, got {value!r}")
+    if value < least:
+        raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+    return int(value)
+
+
+def one_of(value: Any, name: str, choices, also: str = "") -> Any:
+    """``value`` if it is one of ``choices``, else ``ValueError`` listing them (``also``
+    names what else is allowed)."""
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be {also}one of {list(choices)}, got {value!r}")
+    return value
+
+
 def number(
     value: Any,
     name: str,

@@ -25,8 +25,10 @@ from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import State
 from grasp_env.envs.checks import (
     flag,
+    integer,
     number,
     numbers,
+    one_of,
     palm_problem,
     placement_problem,
     shape_ranges,
@@ -297,42 +299,27 @@ class FrictionlessGraspEnv(gym.Env):
         self.always_compute_grip = flag(always_compute_grip, "always_compute_grip")
         self.max_finger_step = number(max_finger_step, "max_finger_step", 0.0, math.pi / 2)
         self.max_palm_step = numbers(max_palm_step, "max_palm_step", 3, 0.0, 1.0)
-        if not isinstance(start, str) or start not in _STARTS:
-            raise ValueError(f"start must be one of {list(_STARTS)}, got {start!r}")
-        self.start = start
+        self.start = one_of(start, "start", _STARTS)
+        weights = (
+            reward_form_closure_weight, reward_grip_weight, reward_lift_weight,
+            reward_drop_weight, reward_ctrl_weight,
+        )  # fmt: skip
         self.reward_weights = {
             name: number(value, f"reward_{name}_weight", 0.0, math.inf, lo_open=False)
-            for name, value in zip(
-                _REWARD_TERMS,
-                (
-                    reward_form_closure_weight,
-                    reward_grip_weight,
-                    reward_lift_weight,
-                    reward_drop_weight,
-                    reward_ctrl_weight,
-                ),
-                strict=True,
-            )
+            for name, value in zip(_REWARD_TERMS, weights, strict=True)
         }
         self.gamma = number(gamma, "gamma", 0.0, 1.0)
         self.contact_tol = number(
             contact_tol, "contact_tol", *CONTACT_TOL_RANGE, lo_open=False, hi_open=True
         )
-        if isinstance(max_vertices, bool) or not isinstance(max_vertices, int | np.integer):
-            raise TypeError(f"max_vertices must be an int, got {max_vertices!r}")
-        if max_vertices < 3:
-            raise ValueError(f"max_vertices must be >= 3, got {max_vertices!r}")
-        self.max_vertices = int(max_vertices)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be None or one of {self.metadata['render_modes']}, "
-                f"got {render_mode!r}"
-            )
+        self.max_vertices = integer(max_vertices, "max_vertices", 3, TypeError)
+        if render_mode is not None:
+            one_of(render_mode, "render_mode", self.metadata["render_modes"], "None or ")
         self.render_mode = render_mode
-        for name, value in (("render_width", render_width), ("render_height", render_height)):
-            if isinstance(value, bool) or not isinstance(value, int) or value < 16:
-                raise ValueError(f"{name} must be an integer >= 16, got {value!r}")
-        self.render_size = (render_width, render_height)
+        self.render_size = (
+            integer(render_width, "render_width", 16),
+            integer(render_height, "render_height", 16),
+        )
 
         specs = list(scene) if isinstance(scene, list | tuple) else [scene]
         if not specs:
