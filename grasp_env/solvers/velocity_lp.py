@@ -187,6 +187,10 @@ def _optimal_basis(
     Tests ``|det|``-scaled quantities (``lam_B |det|``, ``u |det|``), whose rounding errors
     are a few ulps of ``|c|`` and ``|xi|_inf``; see :mod:`grasp_env.solvers.fastlp` for the
     tolerances, the refinement and the refit of a slightly negative multiplier.
+
+    One function, longer than the others: the search over bases and the refinement of the one
+    it keeps share the scratch arrays allocated once here, which the enumeration reuses for
+    every row subset.
     """
     n, r = W.shape
     G = np.empty((r, r))
