@@ -18,7 +18,7 @@ from grasp_env.core import geometry as geo
 from grasp_env.core.scene import Scene
 from grasp_env.core.scene_loading import load_scene
 from grasp_env.errors import SceneError
-from grasp_env.planning import centred_hand
+from grasp_env.planning.preliftoff import centred_hand
 
 #: Default ranges of the shape randomizer: vertex count (inclusive), size (the polygon's
 #: diameter, i.e. its largest vertex-to-vertex distance, in palm widths), aspect ratio of the
