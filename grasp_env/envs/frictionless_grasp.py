@@ -49,6 +49,7 @@ from grasp_env.envs.shapes import hand_setup, random_shape_scene
 from grasp_env.errors import ComputationError
 from grasp_env.mechanics.closure import grip_objective, is_form_closure
 from grasp_env.planning.preliftoff import centred_placement
+from grasp_env.render import Renderer
 from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator
 
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
@@ -741,8 +742,6 @@ class FrictionlessGraspEnv(gym.Env):
         if self._state is None:
             raise RuntimeError("call reset() before render()")
         if self._renderer is None:
-            from grasp_env.render import Renderer  # on first use: pygame is slow to import
-
             self._renderer = Renderer(*self.render_size, fps=self.metadata["render_fps"])
         frame = self._renderer.draw(self._state, self._caption())
         if self.render_mode == "human":
