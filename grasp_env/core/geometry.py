@@ -87,11 +87,6 @@ def edge_normals(vertices: np.ndarray) -> np.ndarray:
     return n / norms(n)[:, None]
 
 
-def finger_axis_P(q: float) -> np.ndarray:
-    """Unit axis ``u_i = (cos q_i, sin q_i)`` of a finger in the palm frame."""
-    return np.array([math.cos(q), math.sin(q)])
-
-
 def finger_polygon_local(length: float, thickness: float, finger: int) -> np.ndarray:
     """CCW finger rectangle in its own link frame (x along the finger axis, origin at the joint).
 
@@ -119,14 +114,6 @@ def palm_polygon_local(width: float, thickness: float) -> np.ndarray:
     """CCW palm rectangle ``[-w/2, w/2] x [0, t]`` in P; edge 0 (J1 -> J2) is the palmar edge."""
     h = width / 2.0
     return np.array([[-h, 0.0], [h, 0.0], [h, thickness], [-h, thickness]])
-
-
-def finger_link_pose(h: np.ndarray, palm_width: float, finger: int) -> np.ndarray:
-    """World pose ``(x, y, phi)`` of finger ``finger``'s link frame (origin at its joint)."""
-    xp, yp, thp = h[0], h[1], h[2]
-    jx = -palm_width / 2.0 if finger == 1 else palm_width / 2.0
-    c, s = math.cos(thp), math.sin(thp)
-    return np.array([xp + c * jx, yp + s * jx, thp + h[2 + finger]])
 
 
 def segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> float:

@@ -124,8 +124,7 @@ def advance(model, q, h0, dh, s_end, known, use_known, events, solves):
             if not moved:
                 events.pop()  # the fall that did not happen
                 events.pop()
-            ms = _at(ms, q_new)
-            ms = MoveState(ms.q, ms.s, ms.keys, ms.use_known, ms.kept, ms.here, not moved, ms.run)
+            ms = MoveState(q_new, ms.s, ms.keys, ms.use_known, ms.kept, ms.here, not moved, ms.run)
             continue
         if ms.s >= s_end - 1e-15:
             return ms.q, s_end, False, events
