@@ -172,3 +172,40 @@ def penetration_depth(a: np.ndarray, b: np.ndarray) -> float:
         reach = (p * n).sum(axis=1) - (other[:, None, :] * n[None]).sum(-1).min(axis=0)
         depth = min(depth, float(reach.min()))
     return depth
+
+
+def turn_to_contact(a: np.ndarray, centre: np.ndarray, b: np.ndarray, ccw: bool = True) -> float:
+    """Least angle (rad, >= 0) through which polygon ``a`` must turn about ``centre``
+    (counter-clockwise, or clockwise if not ``ccw``) for its boundary to meet polygon ``b``'s;
+    ``inf`` if it never does within a full turn. ``b`` stays fixed; both ``(n, 2)`` in one frame.
+
+    The first meeting is a vertex of one polygon reaching an edge of the other, so the
+    candidates are where each vertex's circle about ``centre`` crosses the other polygon's edges:
+    a vertex of ``a`` moves along its circle by the turn, a vertex of ``b`` moves along its
+    circle by minus the turn in ``a``'s frame.
+    """
+    if not ccw:  # a clockwise turn is a counter-clockwise one in the mirrored plane
+        flip = np.array([1.0, -1.0])
+        return turn_to_contact(a * flip, centre * flip, b * flip)
+    best = math.inf
+    for moving, fixed, sign in ((a, b, 1.0), (b, a, -1.0)):
+        p = moving - centre  # (m, 2) vertices about the centre
+        e0 = fixed - centre  # edges e0[k] -> e1[k]
+        d = np.roll(e0, -1, axis=0) - e0
+        # |e0 + t d|^2 = |p|^2 for every vertex and edge: a t^2 + 2 b t + c = 0
+        qa = (d * d).sum(axis=1)[None, :]
+        qb = (e0 * d).sum(axis=1)[None, :]
+        qc = (e0 * e0).sum(axis=1)[None, :] - (p * p).sum(axis=1)[:, None]
+        disc = qb * qb - qa * qc
+        ok = (disc >= 0.0) & (qa > 0.0)
+        root = np.sqrt(np.where(ok, disc, 0.0))
+        for t in ((-qb - root) / qa, (-qb + root) / qa):
+            hit = ok & (t >= 0.0) & (t <= 1.0)
+            if not hit.any():
+                continue
+            x = e0[None, :, :] + t[:, :, None] * d[None, :, :]
+            turn = np.arctan2(x[..., 1], x[..., 0]) - np.arctan2(p[:, 1], p[:, 0])[:, None]
+            turn = np.mod(sign * turn, 2.0 * math.pi)[hit]
+            turn[turn > 2.0 * math.pi - 1e-12] = 0.0  # a touch at the start, not a full turn
+            best = min(best, float(turn.min()))
+    return best

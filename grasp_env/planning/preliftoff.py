@@ -5,7 +5,6 @@ fingers closed until they touch."""
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -35,33 +34,24 @@ PRELIFTOFF_STEP = 0.1
 PALM_ANGLES = (0.0, -0.2, 0.2, -0.4, 0.4, -0.6, 0.6)
 
 
-def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray, tol: float) -> float | None:
+def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray) -> float | None:
     """Angle at which finger ``finger`` (1 or 2), closing from its open limit with the rest of
-    the hand fixed, first touches the object; None if it never does within its limits."""
+    the hand fixed, first touches the object (the support ignored); None if it overlaps the
+    object at the open limit or never touches it within its limits."""
     lo_lim, hi_lim = scene.fingers[finger - 1].limits
+    # finger 1 closes as q1 increases (counter-clockwise), finger 2 as q2 decreases
+    q_open, q_shut = (lo_lim, hi_lim) if finger == 1 else (hi_lim, lo_lim)
+    h = h.copy()
+    h[2 + finger] = q_open
+    link = kin.hand_polygons_W(scene, h)[finger]
     obj = geo.transform(q_obj, scene.object.vertices_B)
-
-    def depth(q: float) -> float:
-        hh = h.copy()
-        hh[2 + finger] = q
-        return geo.penetration_depth(kin.hand_polygons_W(scene, hh)[finger], obj)
-
-    # finger 1 closes as q1 increases, finger 2 as q2 decreases
-    grid = np.linspace(lo_lim, hi_lim, 91) if finger == 1 else np.linspace(hi_lim, lo_lim, 91)
-    if depth(grid[0]) > 0:
+    if geo.penetration_depth(link, obj) > 0.0:
         return None
-    for a, b in itertools.pairwise(grid):
-        if depth(b) > 0:
-            for _ in range(80):
-                m = 0.5 * (a + b)
-                if depth(m) > 0:
-                    b = m
-                else:
-                    a = m
-                if abs(b - a) < 1e-14:
-                    break
-            return a if depth(a) >= -tol else None
-    return None
+    joint = kin.body_poses_W(scene, h)[finger, :2]
+    turn = geo.turn_to_contact(link, joint, obj, ccw=finger == 1)
+    if turn > abs(q_shut - q_open):
+        return None
+    return q_open + math.copysign(turn, q_shut - q_open)
 
 
 def tipping_placement(
@@ -104,7 +94,7 @@ def tipping_placement(
                 low = min(p[:, 1].min() for p in kin.hand_polygons_W(scene, h))
                 if low < 0.0:
                     h[:2] += (-low + tol) / side_up[1] * side_up
-                q_move = _first_touch(scene, h, move, q_obj, tol)
+                q_move = _first_touch(scene, h, move, q_obj)
                 if q_move is None:
                     continue
                 h[2 + move] = q_move
