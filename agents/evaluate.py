@@ -3,9 +3,10 @@
     python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
         [--out DIR] [--workers 2]
 
-Suites: ``bundled`` (every bundled scene, ``--bundled-episodes`` seeds each) and
-``heldout`` (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds
-that training never uses). Every policy meets the same scenes and seeds. Writes
+Suites: ``bundled`` (every bundled scene, ``--bundled-episodes`` seeds each), ``heldout``
+(``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds that
+training never uses) and ``wide`` (``--wide-episodes`` such shapes in the randomizer's wider
+ranges, 3-12 vertices and aspect to 1:5). Every policy meets the same scenes and seeds. Writes
 ``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
 printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
 into ``--out``. See ``docs/training.md`` for the metrics.
@@ -34,14 +35,20 @@ import numpy as np
 
 import grasp_env
 from agents.train_ppo import MODEL_DIR, load_agent
-from grasp_env.cli import HelpFormatter, positive_int
+from grasp_env.cli import HelpFormatter, nonnegative_int, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.envs.shapes import WIDE_SHAPE_RANGES
 
 #: First seed of the held-out shapes. Training seeds its envs with ``seed + rank`` and its
 #: evaluation env with ``seed + 1000`` (small seeds); these streams never meet them.
 HELDOUT_SEED = 1_000_000
 #: Env kwargs of the held-out suite: fig13's hand, a new random shape per seed.
 HELDOUT_KWARGS = {"scene": "fig13", "shape_randomizer": True}
+#: Env kwargs of the wide held-out suite: the same with the randomizer's wider ranges
+#: (``grasp_env.envs.shapes.WIDE_SHAPE_RANGES``: 3-12 vertices, aspect to 1:5).
+WIDE_KWARGS = {"scene": "fig13", "shape_randomizer": dict(WIDE_SHAPE_RANGES)}
+#: Env kwargs of the random-shape suites, by suite name.
+SHAPE_SUITES = {"heldout": HELDOUT_KWARGS, "wide": WIDE_KWARGS}
 #: Env set-up of the scripted planner (``agents.scripted.ScriptedPolicy``, which plans from
 #: the env's state at every reset with exact knowledge of the scene, as the paper assumes):
 #: the scene's start with palm actions, so that where lifting with the palm fixed fails (as
@@ -165,7 +172,7 @@ def run_episode(
     spec: PolicySpec, suite: str, scene: str, seed: int, max_steps: int | None, frames=None
 ) -> Episode:
     """Run one episode to its end; appends rendered frames to ``frames`` if given."""
-    suite_kwargs = HELDOUT_KWARGS if suite == "heldout" else {"scene": scene}
+    suite_kwargs = SHAPE_SUITES.get(suite, {"scene": scene})
     extra = {}
     if frames is not None:
         extra = {"render_mode": "rgb_array", "render_width": GIF_SIZE[0]}
@@ -233,13 +240,15 @@ def bootstrap_mean(values: list[float], seed: int = 0) -> tuple[float, float]:
 def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
     """One row per (suite, policy): rates with Wilson CIs, means with bootstrap CIs.
 
-    Suites: the paper's scene alone (``fig13``), all bundled scenes, the held-out shapes.
+    Suites: the paper's scene alone (``fig13``), all bundled scenes, the held-out shapes in the
+    default and the wide ranges.
     """
     rows = []
     groups = {
         GIF_SCENE: [e for e in episodes if e.suite == "bundled" and e.scene == GIF_SCENE],
         "bundled": [e for e in episodes if e.suite == "bundled"],
         "heldout": [e for e in episodes if e.suite == "heldout"],
+        "wide": [e for e in episodes if e.suite == "wide"],
     }
     policies = list(dict.fromkeys(e.policy for e in episodes))
     for (suite, group), policy in itertools.product(groups.items(), policies):
@@ -380,8 +389,9 @@ def evaluate(
     scenes: list[str] | None = None,
     max_steps: int | None = None,
     workers: int = 1,
+    wide_episodes: int = 0,
 ) -> list[dict[str, Any]]:
-    """Run every policy on both suites, write every output into ``out``; returns the rows."""
+    """Run every policy on every suite, write every output into ``out``; returns the rows."""
     out.mkdir(parents=True, exist_ok=True)
     scenes = scenes if scenes is not None else grasp_env.bundled_scenes()
     jobs = [
@@ -391,9 +401,10 @@ def evaluate(
         for seed in range(bundled_episodes)
     ]
     jobs += [
-        (spec, "heldout", f"shape_{HELDOUT_SEED + k}", HELDOUT_SEED + k, max_steps)
+        (spec, suite, f"shape_{HELDOUT_SEED + k}", HELDOUT_SEED + k, max_steps)
+        for suite, n in (("heldout", episodes), ("wide", wide_episodes))
         for spec in specs
-        for k in range(episodes)
+        for k in range(n)
     ]
     if workers > 1:
         with ProcessPoolExecutor(workers, initializer=_one_thread) as pool:
@@ -450,6 +461,12 @@ def main(argv: list[str] | None = None) -> None:
         help="agents.train_rllib run directories or their checkpoint/ (needs ray[rllib])",
     )
     parser.add_argument("--episodes", type=positive_int, default=20, help="held-out shapes")
+    parser.add_argument(
+        "--wide-episodes",
+        type=nonnegative_int,
+        default=0,
+        help="held-out shapes in the randomizer's wide ranges (suite 'wide')",
+    )
     parser.add_argument("--bundled-episodes", type=positive_int, default=1, help="per scene")
     parser.add_argument(
         "--scene", "--scenes", dest="scenes", nargs="+", help="bundled scenes (default: all)"
@@ -477,6 +494,7 @@ def main(argv: list[str] | None = None) -> None:
         args.scenes,
         args.max_steps,
         args.workers,
+        args.wide_episodes,
     )
     print(markdown_table(rows), end="")
     print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")

@@ -35,7 +35,7 @@ SUITE = {
     "profile": lambda quick, out: profile_step.run(quick, out / "profile.md"),
     "memory": lambda quick, out: memory.run(quick, out / "memory.md"),
     "planner": lambda quick, out: planner_shapes.run(
-        out / "planner_shapes.md", shapes=2 if quick else 12
+        out / "planner_shapes.md", shapes=2 if quick else 200, env=not quick
     ),
     "blas_variation": lambda quick, out: blas_variation.run(out, episodes=3 if quick else 200),
     "step_times": lambda quick, out: step_times.run(out, episodes=3 if quick else 200),

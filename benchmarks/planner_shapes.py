@@ -1,165 +1,254 @@
-"""How often the scripted planner lifts random convex shapes, and at what cost.
+"""How often the scripted planner lifts random convex shapes, why it fails where it does, and
+what a plan costs.
 
-Each shape is the env's shape randomizer (``grasp_env.envs.shapes.random_shape_scene``) on
-the fig13 hand, seeded ``seed, seed + 1, ...``. Every plan runs in its own process with a
-wall-clock limit (a plan that tries every placement can take minutes), ``--workers`` at a
-time. Writes a Markdown table (one row a shape, then the counts per outcome).
+Two suites of the env's shape randomizer on the fig13 hand: ``heldout`` (the env's default
+ranges) and ``wide`` (``WIDE_SHAPE_RANGES``: 3-12 vertices, aspect to 1:5). Shape ``k`` of a
+suite is the env's shape for ``reset(seed=HELDOUT_SEED + k)``, the held-out shapes of
+``agents.evaluate``. For each shape: whether it is tippable (the paper's criterion: a
+tippability region is non-empty; without one no frictionless grasp can lift it), the whole
+plan (:func:`grasp_env.planning.plan_grasp`), its outcome re-checked on the final state, and
+its CPU time. ``--env`` adds the scripted policy (``agents.scripted.ScriptedPolicy``) through
+the env on the same shapes, as ``agents.evaluate`` runs it.
 
-Usage: ``python -m benchmarks.planner_shapes [--seed S] [--shapes N] [--timeout T]
-[--workers W] [--out FILE]`` from the repository root (12 shapes: about 5 minutes).
+Usage: ``python -m benchmarks.planner_shapes [--shapes N] [--suites heldout wide] [--env]
+[--timeout T] [--workers W] [--out FILE]`` from the repository root (200 shapes a suite on
+two workers: about 10 minutes, 20 more with ``--env``).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import math
-import subprocess
-import sys
-import time
+import statistics
 from collections import Counter
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from benchmarks.common import OUT, table, write
+from benchmarks.common import OUT, BudgetExceeded, headless, table, time_limit, write
 
-ROOT = Path(__file__).resolve().parent.parent
+SUITES = ("heldout", "wide")
 
 
-def plan_one(seed: int) -> dict:
-    """Plan a grasp of random shape ``seed``; the outcome as a JSON-able dict."""
+def suite_scene(suite: str, k: int):
+    """Shape ``k`` of ``suite``: the scene of the env's ``reset(seed=HELDOUT_SEED + k)``."""
+    import gymnasium as gym
+
+    from agents.evaluate import HELDOUT_SEED, SHAPE_SUITES
+
+    env = gym.make("FrictionlessGrasp-v0", **SHAPE_SUITES[suite])
+    env.reset(seed=HELDOUT_SEED + k)
+    scene = env.unwrapped.simulator.scene
+    env.close()
+    return scene
+
+
+def plan_one(suite: str, k: int, timeout: float) -> dict:
+    """Plan a grasp of shape ``k`` of ``suite``; the outcome as a dict."""
     import numpy as np
 
     from grasp_env import planning
-    from grasp_env.core.scene_loading import load_scene
-    from grasp_env.envs.shapes import random_shape_scene
     from grasp_env.mechanics import closure as mech
+    from grasp_env.mechanics.tippability import tippability_regions
 
-    scene = random_shape_scene(np.random.default_rng(seed), load_scene("fig13"))
-    plan = planning.plan_grasp(scene)
+    scene = suite_scene(suite, k)
+    left, right = tippability_regions(scene)
+    row = {
+        "suite": suite,
+        "k": k,
+        "vertices": len(scene.object.vertices_B),
+        "tippable": not (left.is_empty and right.is_empty),
+    }
+    try:
+        with time_limit(timeout):
+            plan = planning.plan_grasp(scene)
+    except BudgetExceeded:
+        over = {"status": "timeout", "checked": False, "reason": f"over {timeout:g} s"}
+        return {**row, **over, "cpu": timeout}
     final = plan.steps[-1].state if plan.steps else None
-    ok = (
-        plan.success
-        and final is not None
-        and "support" not in {c.body for c in final.contacts}
+    checked = (
+        final is not None
+        and not final.on_support
         and mech.is_form_closure(final)
         and bool(np.all(np.isfinite(final.object_pose)))
     )
-    bounds = plan.phase_bounds()
     return {
-        "seed": seed,
-        "vertices": len(scene.object.vertices_B),
+        **row,
         "status": plan.status,
-        "checked": bool(ok) if plan.success else None,
+        "checked": checked,
+        "reason": "" if plan.success else plan.message,
         "placement": plan.placement,
-        "lifting_steps": (bounds["lifting"][1] - bounds["lifting"][0] + 1)
-        if "lifting" in bounds
-        else 0,
+        "explored": "exploratory" in plan.placement,
         "grip": plan.steps[-1].grip / scene.object_weight if plan.success else None,
         "cpu": plan.cpu_time,
     }
 
 
-def _run(seed: int, timeout: float) -> dict:
-    t0 = time.perf_counter()
+def env_one(suite: str, k: int, timeout: float) -> dict:
+    """The scripted policy's episode on shape ``k`` of ``suite`` through the env."""
+    from agents.evaluate import HELDOUT_SEED, SCRIPTED_KWARGS, PolicySpec, run_episode
+
+    spec = PolicySpec("scripted", "scripted", SCRIPTED_KWARGS)
     try:
-        out = subprocess.run(
-            [sys.executable, "-m", "benchmarks.planner_shapes", "--one", str(seed)],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-        )
-    except subprocess.TimeoutExpired:
-        return {"seed": seed, "status": "timeout", "wall": timeout}
-    if out.returncode != 0:
-        tail = (out.stderr.strip().splitlines() or ["?"])[-1]
-        return {"seed": seed, "status": "crash", "error": tail}
-    res = json.loads(out.stdout.strip().splitlines()[-1])
-    res["wall"] = time.perf_counter() - t0
-    return res
+        with time_limit(timeout):
+            ep = run_episode(spec, suite, f"shape_{HELDOUT_SEED + k}", HELDOUT_SEED + k, None)
+    except BudgetExceeded:
+        return {"suite": suite, "k": k, "success": False, "error": f"over {timeout:g} s"}
+    return {
+        "suite": suite,
+        "k": k,
+        "success": ep.success,
+        "steps": ep.steps,
+        "error": ep.error,
+    }
 
 
-def _fmt(x, spec: str) -> str:
-    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else format(x, spec)
+def _job(job: tuple) -> dict:
+    kind, suite, k, timeout = job
+    return (plan_one if kind == "plan" else env_one)(suite, k, timeout)
 
 
-def report(rows: list[dict], timeout: float) -> list[str]:
-    """The page's body: the per-shape table and the counts per outcome."""
-    counts = Counter(r["status"] for r in rows)
+def _lifted(row: dict) -> bool:
+    return row["status"] == "form_closure" and row["checked"]
+
+
+def _reason(row: dict) -> str:
+    """A failed plan's reason, shortened to its kind."""
+    if row["status"] in ("timeout", "error"):
+        return row["status"]
+    if row["status"] == "form_closure":
+        return "lifted but the final state fails the re-check"
+    return row["reason"].split(":")[0]
+
+
+def _wilson(k: int, n: int) -> str:
+    from agents.evaluate import wilson
+
+    lo, hi = wilson(k, n)
+    return f"{k}/{n} ({100 * k / n:.0f}%, 95% CI {100 * lo:.0f}-{100 * hi:.0f}%)" if n else "-"
+
+
+def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]:
+    """The page's body: per suite, the outcome counts, failure reasons and CPU times, then the
+    scripted policy through the env, then every failure."""
     body = [
-        f"`python -m benchmarks.planner_shapes`: {len(rows)} shapes of the env's randomizer on "
-        f"the fig13 hand, wall limit {timeout:.0f} s a plan. `checked`: the final state is in "
-        "form closure with the object off the support (recomputed from the state).",
+        "Shapes: the env's held-out random shapes (`reset(seed=1_000_000 + k)`) on the fig13 "
+        f"hand; `heldout` in the default ranges, `wide` in `WIDE_SHAPE_RANGES`. Wall limit "
+        f"{timeout:g} s a plan. `lifted`: the final state re-checked to be in form closure "
+        "with the object off the support. Tippable: a non-empty tippability region (the "
+        "paper's criterion; an object without one cannot be lifted without friction).",
         "",
     ]
+    rows = []
+    for suite in SUITES:
+        mine = [r for r in plans if r["suite"] == suite]
+        if not mine:
+            continue
+        tippable = [r for r in mine if r["tippable"]]
+        lifted = [r for r in tippable if _lifted(r)]
+        cpu = [r["cpu"] for r in tippable]
+        rows.append(
+            [
+                suite,
+                len(mine),
+                len(mine) - len(tippable),
+                len(tippable),
+                _wilson(len(lifted), len(tippable)),
+                sum(r.get("explored", False) for r in lifted),
+                f"{statistics.median(cpu):.2f}" if cpu else "-",
+                f"{max(cpu):.2f}" if cpu else "-",
+            ]
+        )
     body += table(
         [
-            "seed",
-            "vertices",
-            "status",
-            "checked",
-            "placement",
-            "lifting steps",
-            "y* / W",
-            "CPU (s)",
+            "suite",
+            "shapes",
+            "not tippable",
+            "tippable",
+            "tippable lifted",
+            "lifted by exploration",
+            "CPU median (s)",
+            "CPU max (s)",
         ],
-        [
-            [
-                r["seed"],
-                r.get("vertices", "-"),
-                r["status"],
-                _fmt(r.get("checked"), ""),
-                r.get("placement") or "-",
-                r.get("lifting_steps", "-"),
-                _fmt(r.get("grip"), ".3f"),
-                _fmt(r.get("cpu"), ".1f"),
-            ]
-            for r in rows
-        ],
-        align="rrlllrrr",
+        rows,
+        align="lrrrrrrr",
     )
-    body += ["", *table(["outcome", "shapes"], sorted(counts.items()))]
+    fails = [r for r in plans if r["tippable"] and not _lifted(r)]
+    reasons = Counter((r["suite"], _reason(r)) for r in fails)
+    if reasons:
+        body += ["", "Tippable shapes not lifted, by reason:", ""]
+        body += table(
+            ["suite", "reason", "shapes"],
+            [[s, reason, n] for (s, reason), n in sorted(reasons.items())],
+            align="llr",
+        )
+    if episodes:
+        body += [
+            "",
+            "The scripted policy through the env on the same shapes (its success: form "
+            "closure off the support at the episode's last step):",
+            "",
+        ]
+        env_rows = []
+        for suite in SUITES:
+            mine = [e for e in episodes if e["suite"] == suite]
+            if not mine:
+                continue
+            tippable = {r["k"] for r in plans if r["suite"] == suite and r["tippable"]}
+            on_tippable = [e for e in mine if e["k"] in tippable]
+            env_rows.append(
+                [
+                    suite,
+                    _wilson(sum(e["success"] for e in mine), len(mine)),
+                    _wilson(sum(e["success"] for e in on_tippable), len(on_tippable)),
+                    sum(bool(e["error"]) for e in mine),
+                ]
+            )
+        body += table(["suite", "success", "success on tippable", "errors"], env_rows, "lllr")
+    if fails:
+        body += ["", "Every tippable shape not lifted:", ""]
+        body += table(
+            ["suite", "k", "vertices", "status", "reason", "CPU (s)"],
+            [
+                [r["suite"], r["k"], r["vertices"], r["status"], r["reason"], f"{r['cpu']:.1f}"]
+                for r in fails
+            ],
+            align="lrrllr",
+        )
     return body
 
 
 def run(
     out: Path,
-    seed: int = 0,
-    shapes: int = 12,
-    timeout: float = 300.0,
-    workers: int = 1,
+    shapes: int = 200,
+    suites: tuple[str, ...] = SUITES,
+    env: bool = False,
+    timeout: float = 120.0,
+    workers: int = 2,
 ) -> Path:
-    """Plan ``shapes`` random shapes from ``seed`` on, ``workers`` at a time; write the page."""
-    seeds = range(seed, seed + shapes)
-    with ThreadPoolExecutor(workers) as pool:
-        rows = list(pool.map(lambda s: _run(s, timeout), seeds))
-    return write(out, "Scripted planner on random shapes", report(rows, timeout))
+    """Plan ``shapes`` shapes of each suite (and run the scripted policy on them with
+    ``env``), ``workers`` processes at a time; write the page."""
+    kinds = ("plan", "env") if env else ("plan",)
+    jobs = [(kind, s, k, timeout) for kind in kinds for s in suites for k in range(shapes)]
+    with ProcessPoolExecutor(workers, initializer=headless) as pool:
+        results = list(pool.map(_job, jobs, chunksize=1))
+    plans, episodes = results[: len(suites) * shapes], results[len(suites) * shapes :]
+    return write(out, "Scripted planner on random shapes", report(plans, episodes, timeout))
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--shapes", type=int, default=12)
-    ap.add_argument("--timeout", type=float, default=300.0, help="wall seconds a plan")
-    ap.add_argument(
-        "--workers",
-        type=int,
-        default=1,
-        help="plans at a time (CPU time is reported per plan: more workers share the cores)",
-    )
+    ap.add_argument("--shapes", type=int, default=200, help="shapes a suite")
+    ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES))
+    ap.add_argument("--env", action="store_true", help="also the scripted policy in the env")
+    ap.add_argument("--timeout", type=float, default=120.0, help="wall seconds a plan or episode")
+    ap.add_argument("--workers", type=int, default=2, help="processes")
     ap.add_argument("--out", type=Path, default=OUT / "planner_shapes.md")
-    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # worker: plan one shape
     args = ap.parse_args(argv)
-    if args.one is not None:
-        print(json.dumps(plan_one(args.one)))
-        return 0
     for name in ("shapes", "workers"):
         if getattr(args, name) < 1:
             ap.error(f"--{name} must be >= 1, got {getattr(args, name)}")
     if not args.timeout > 0:
         ap.error(f"--timeout must be > 0, got {args.timeout}")
-    page = run(args.out, args.seed, args.shapes, args.timeout, args.workers)
+    page = run(args.out, args.shapes, tuple(args.suites), args.env, args.timeout, args.workers)
     print(page.read_text())
     return 0
 

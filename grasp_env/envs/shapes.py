@@ -30,6 +30,13 @@ DEFAULT_SHAPE_RANGES: dict[str, tuple[float, float]] = {
     "mass": (0.05, 0.5),
 }
 
+#: A wider range for harder benchmarks: up to 12 vertices and elongated shapes (aspect to 5).
+WIDE_SHAPE_RANGES: dict[str, tuple[float, float]] = {
+    **DEFAULT_SHAPE_RANGES,
+    "vertices": (3, 12),
+    "aspect": (1.0, 5.0),
+}
+
 #: A supporting edge is stable when the centroid projects onto it at least this fraction of
 #: its length away from both ends.
 STABILITY_MARGIN = 0.1
@@ -172,6 +179,7 @@ def random_shape_scene(
 
 __all__ = [
     "DEFAULT_SHAPE_RANGES",
+    "WIDE_SHAPE_RANGES",
     "hand_setup",
     "random_convex_polygon",
     "random_shape_scene",

@@ -50,12 +50,16 @@ def test_profile_baseline_columns(tmp_path):
     assert set(profile_step.CONFIGS) <= set(record)
 
 
-def test_planner_shapes_page_holds_each_plan(tmp_path):
-    page = planner_shapes.run(tmp_path / "shapes.md", seed=3, shapes=1, timeout=120)
+def test_planner_shapes_page_counts_each_plan_and_episode(tmp_path):
+    page = planner_shapes.run(
+        tmp_path / "shapes.md", shapes=2, suites=("heldout",), env=True, timeout=120, workers=1
+    )
     text = page.read_text()
     assert text.startswith("# ") and "Machine:" in text
-    row = next(line for line in text.splitlines() if line.startswith("| 3 |"))
-    assert "crash" not in row and "timeout" not in row  # the worker process ran the plan
+    row = next(line for line in text.splitlines() if line.startswith("| heldout | 2 |"))
+    assert "timeout" not in text  # the worker processes ran every plan and episode
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert int(cells[2]) + int(cells[3]) == 2  # not tippable + tippable
 
 
 def _forced_core_type() -> str | None:
