@@ -340,8 +340,8 @@ class ScriptedPolicy:
             increments.append(dh)
         plan = planning.Plan()
         plan.steps.append(planning.PlanStep("pre-liftoff", state, math.nan, "env state"))
-        phase, increments = planning.explore(
-            base.simulator, (states, increments), EXPLORE_MOVES, move
+        phase, increments, _ = planning.explore(
+            base.simulator, [(states, increments)], EXPLORE_MOVES, move
         )
         end = plan.add(phase)
         if not plan.success:

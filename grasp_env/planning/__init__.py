@@ -37,6 +37,7 @@ from grasp_env.planning.preliftoff import (
     centred_hand,
     centred_placement,
     close_until_touch,
+    scoop_placement,
     squeeze_tips,
     tipping_placement,
 )
@@ -62,6 +63,7 @@ __all__ = [
     "lift",
     "palm_distance",
     "plan_grasp",
+    "scoop_placement",
     "squeeze_tips",
     "tipping_placement",
     "touching_bodies",

@@ -4,9 +4,11 @@ form closure, exploratory lifting with palm motion as the last resort
 
 from __future__ import annotations
 
+import itertools
 import logging
-import math
 import time
+from collections import Counter
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -28,6 +30,7 @@ from grasp_env.planning.plan import (
 from grasp_env.planning.preliftoff import (
     PALM_ANGLES,
     centred_placement,
+    scoop_placement,
     squeeze_tips,
     tipping_placement,
 )
@@ -65,14 +68,18 @@ def plan_grasp(
 
 
 def _placements(sim: Simulator, centred: State):
-    """Pre-liftoff placements in the order lifting tries them: the tipping placements (Fig. 4)
-    with the palm parallel to the support, the centred one (the paper's fallback) if squeezing
-    tips the object, then tipping placements with the palm tilted by ``PALM_ANGLES``."""
+    """Pre-liftoff placements in the order lifting tries them, for each palm angle of
+    ``PALM_ANGLES`` (parallel to the support first): the tipping placements (Fig. 4), the
+    scoop (both fingertips low at the support), and with the palm parallel the centred one
+    (the paper's fallback) if squeezing tips the object."""
     for th in PALM_ANGLES:
         for side in ("right", "left"):
             found = tipping_placement(sim, palm_angles=(th,), sides=(side,))
             if found is not None:
                 yield found[0], f"tippability ({side} region, palm angle {th:+.1f})"
+        scoop = scoop_placement(sim, th)
+        if scoop is not None:
+            yield scoop, f"scoop (palm angle {th:+.1f})"
         if th == 0.0 and squeeze_tips(sim, centred)[0]:
             yield centred, "centred"
 
@@ -86,67 +93,83 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         )
         return
     centred = centred_placement(sim)
-    tries = 0
-    failed = []
-    for state, placement in _placements(sim, centred):  # re-place the hand when stuck
-        tries += 1
+    tried: list[tuple[str, State, PhaseResult]] = []  # placement, its state, lifting from it
+    for start, placement in _placements(sim, centred):  # re-place the hand when stuck
         log.info("lifting from the %s placement", placement)
-        plan.steps = [PlanStep("pre-liftoff", state, grip_if_closed(state), placement)]
-        plan.placement = placement
-        state = plan.add(lift(sim, state, dq))
-        if plan.success:
+        tried.append((placement, start, lift(sim, start, dq)))
+        log.info("  %s", tried[-1][2].message)
+        if tried[-1][2].status == "form_closure":
             break
-        log.info("  %s", plan.message)
-        failed.append(f"from the {placement} placement: {plan.message}")
-    if tries == 0:
-        plan.steps = [PlanStep("pre-liftoff", centred, math.nan, "not tippable")]
-        plan.status = "not_tippable"
-        plan.message = "no tipping placement: squeezing the centred hand does not move the object"
-        return
-    if not plan.success and explore_moves > 0:
+    why = _stuck_reason(tried)
+    if not (tried and tried[-1][2].status == "form_closure") and explore_moves > 0:
         log.info("exploratory lifting with palm motion (up to %d moves)", explore_moves)
-        plan.steps = [PlanStep("pre-liftoff", centred, grip_if_closed(centred), "centred")]
-        plan.placement = "centred, exploratory lifting"
-        phase, _ = explore(sim, ([centred], []), explore_moves)
-        state = plan.add(phase)
-        if not plan.success:
-            failed.append(plan.message)
+        leads = [_lead(start, phase) for _, start, phase in tried] + [([centred], [])]
+        names = [name for name, _, _ in tried] + ["centred"]
+        phase, _, k = explore(sim, leads, explore_moves)
+        if phase.status == "form_closure":
+            tried.append((f"{names[k]}, exploratory lifting", leads[k][0][0], phase))
+        why += f"; {phase.message}"
+    placement, start, phase = tried[-1] if tried else ("centred", centred, None)
+    plan.steps = [PlanStep("pre-liftoff", start, grip_if_closed(start), placement)]
+    plan.placement = placement
+    state = plan.add(phase) if phase is not None else start
     if not plan.success:
-        plan.message = "; ".join(failed)
+        plan.status, plan.message = "stuck", why
         return
-    if failed:
-        plan.message += f" (after re-placement; {'; '.join(failed)})"
     if adjust:
         log.info("form closure at step %d; grip adjustment", len(plan.steps) - 1)
         plan.add(adjust_grip(sim, state))
 
 
+def _lead(start: State, phase: PhaseResult) -> tuple[list[State], list[np.ndarray]]:
+    """A lifting attempt as a path: its states from the placement on, and the hand
+    increments between them."""
+    states = [start, *(step.state for step in phase.steps)]
+    return states, [b.hand - a.hand for a, b in itertools.pairwise(states)]
+
+
+def _stuck_reason(tried: list[tuple[str, State, PhaseResult]]) -> str:
+    """Why lifting with the palm fixed failed: per reason, from how many placements."""
+    if not tried:
+        return (
+            "no tipping placement: no fingertip placement reaches a tippability region and "
+            "squeezing the centred hand does not move the object"
+        )
+    counts = Counter(phase.message for _, _, phase in tried)
+    parts = ", ".join(f"{why} ({n} of {len(tried)})" for why, n in counts.items())
+    return f"fixed-palm lifting stuck from every placement: {parts}"
+
+
 def explore(
     sim: Simulator,
-    lead: tuple[list[State], list[np.ndarray]],
+    leads: Sequence[tuple[list[State], list[np.ndarray]]],
     max_moves: int = EXPLORE_MOVES,
     move: regrasp.Move | None = None,
-) -> tuple[PhaseResult, list[np.ndarray]]:
-    """Exploratory lifting with palm motion (:mod:`grasp_env.regrasp`): a seeded search over
-    finger increments, palm translations and palm turns for form closure with the object off
-    the support, from the last state of ``lead`` (states and the hand increments between
-    them), the whole path then shortened.
+) -> tuple[PhaseResult, list[np.ndarray], int]:
+    """Exploratory lifting with palm motion (:mod:`grasp_env.planning.regrasp`): a seeded
+    search over finger increments, palm translations and palm turns for form closure with the
+    object off the support, starting from every state of the ``leads`` (paths already
+    simulated: states and the hand increments between them), the whole path then shortened.
 
     ``move`` simulates a hand increment (default: one straight simulator move; the scripted
-    policy passes the env's own step). Returns the path after ``lead``'s first state as
+    policy passes the env's own step). Returns the path after its lead's first state as
     lifting steps noted ``explore`` (status ``"form_closure"``, else ``"stuck"`` and no
-    steps), and the path's hand increments."""
+    steps), the path's hand increments, and the index of its lead."""
     if move is None:
 
         def move(st: State, dh: np.ndarray) -> State | None:
             h = st.hand + dh
             return try_move(sim, st, palm=h[:3], fingers=h[3:])
 
-    states, increments = lead
-    found = regrasp.explore_lift(states[-1], move, grasped, max_moves=max_moves)
+    roots = [(i, k) for i, (states, _) in enumerate(leads) for k in range(len(states))]
+    found = regrasp.explore_lift(
+        [leads[i][0][k] for i, k in roots], move, grasped, max_moves=max_moves
+    )
     if found.states is None:
         message = f"exploratory lifting found no grasp in {found.moves} moves"
-        return PhaseResult((), states[-1], "stuck", message), []
+        return PhaseResult((), leads[0][0][-1], "stuck", message), [], 0
+    lead, k = roots[found.root]
+    states, increments = leads[lead][0][: k + 1], leads[lead][1][:k]
     walk = len(states) - 1 + len(found.states) - 1
     states, increments = regrasp.shorten(
         states + found.states[1:], increments + found.increments, move, grasped
@@ -161,4 +184,4 @@ def explore(
         f"form closure reached by exploratory lifting with palm motion ({found.moves} moves "
         f"searched, path of {walk} shortened to {len(states) - 1})"
     )
-    return PhaseResult(steps, states[-1], "form_closure", message), increments
+    return PhaseResult(steps, states[-1], "form_closure", message), increments, lead

@@ -24,6 +24,10 @@ from grasp_env.solvers.motion_lp import motion_lp
 #: finger could not touch the support").
 PALM_CLEARANCE = 0.01
 
+#: Gap between a low fingertip and the support or the object, in palm widths
+#: (:func:`scoop_placement`).
+TIP_CLEARANCE = 1e-3
+
 #: Finger step of the pre-liftoff closing motion (rad); the first touch is then located
 #: exactly from the simulator's events, so the step only changes the cost.
 PRELIFTOFF_STEP = 0.1
@@ -34,24 +38,35 @@ PRELIFTOFF_STEP = 0.1
 PALM_ANGLES = (0.0, -0.2, 0.2, -0.4, 0.4, -0.6, 0.6)
 
 
-def _first_touch(scene, h: np.ndarray, finger: int, q_obj: np.ndarray) -> float | None:
-    """Angle at which finger ``finger`` (1 or 2), closing from its open limit with the rest of
-    the hand fixed, first touches the object (the support ignored); None if it overlaps the
-    object at the open limit or never touches it within its limits."""
+def _first_touch(
+    scene,
+    h: np.ndarray,
+    finger: int,
+    q_obj: np.ndarray,
+    support: np.ndarray | None = None,
+    start: float | None = None,
+) -> float | None:
+    """Angle at which finger ``finger`` (1 or 2), closing from ``start`` (default its open
+    limit) with the rest of the hand fixed, first touches the object; None if it overlaps the
+    object at the start, never touches it within its limits, or meets the polygon ``support``
+    (if given; else the support is ignored) first."""
     lo_lim, hi_lim = scene.fingers[finger - 1].limits
     # finger 1 closes as q1 increases (counter-clockwise), finger 2 as q2 decreases
     q_open, q_shut = (lo_lim, hi_lim) if finger == 1 else (hi_lim, lo_lim)
+    closing = 1.0 if finger == 1 else -1.0
     h = h.copy()
-    h[2 + finger] = q_open
+    h[2 + finger] = q_open if start is None else start
     link = kin.hand_polygons_W(scene, h)[finger]
     obj = geo.transform(q_obj, scene.object.vertices_B)
     if geo.penetration_depth(link, obj) > 0.0:
         return None
     joint = kin.body_poses_W(scene, h)[finger, :2]
     turn = geo.turn_to_contact(link, joint, obj, ccw=finger == 1)
-    if turn > abs(q_shut - q_open):
+    if turn > closing * (q_shut - h[2 + finger]):
         return None
-    return q_open + math.copysign(turn, q_shut - q_open)
+    if support is not None and geo.turn_to_contact(link, joint, support, ccw=finger == 1) < turn:
+        return None
+    return h[2 + finger] + closing * turn
 
 
 def tipping_placement(
@@ -114,6 +129,111 @@ def tipping_placement(
                 if best is None or arm > best[0]:
                     best = (arm, state, side)
     return None if best is None else (best[1], best[2])
+
+
+def scoop_placement(sim: Simulator, palm_angle: float = 0.0) -> State | None:
+    """Pre-liftoff placement with both fingertips low at the support, just outside the
+    object, the fingers inclined inward, each then closed until it first touches the object.
+
+    Closing turns an inclined finger's tip inward and up, so the first contacts are on the
+    object's lowest faces: where those overhang (their normals point up), they lie in the
+    tippability regions and squeezing lifts the object off the support between the tips
+    rather than tipping it. The palm pose follows from the tips (two circles about them, the
+    joints a palm width apart at ``palm_angle``). Returned if a finger's first contact lies
+    in the region its push tips (finger 1 in the right region, finger 2 in the left), the
+    hand clears the support and the object, and squeezing moves the object
+    (:func:`squeeze_tips`); else None."""
+    scene = sim.scene
+    q_obj = scene.object.start_pose.copy()
+    obj = geo.transform(q_obj, scene.object.vertices_B)
+    left, right = tippability_regions(scene)
+    if left.is_empty and right.is_empty:
+        return None
+    gap = TIP_CLEARANCE * scene.palm.width
+    # Tip heights: as low as the fingers' outer corners allow (they lie below the tips, by an
+    # amount that depends on the inclination, hence a few rounds).
+    y = np.array([f.thickness for f in scene.fingers]) + gap
+    for _ in range(3):
+        tips = np.array(
+            [[_extent_above(obj, y[0])[0] - gap, y[0]], [_extent_above(obj, y[1])[1] + gap, y[1]]]
+        )
+        h = _hand_through_tips(scene, tips[0], tips[1], palm_angle)
+        if h is None:
+            return None
+        lowest = np.array([p[:, 1].min() for p in kin.hand_polygons_W(scene, h)[1:]])
+        y += gap - lowest
+    if kin.hand_placement_problem(scene, q_obj, h, 0.0) is not None:
+        return None
+    support = _support_polygon(obj, scene.palm.width)
+    for finger in (1, 2):
+        q = _first_touch(scene, h, finger, q_obj, support, start=h[2 + finger])
+        if q is None:
+            return None
+        h[2 + finger] = q
+    if kin.hand_placement_problem(scene, q_obj, h, 10 * sim.tol) is not None:
+        return None
+    try:
+        state = sim.settle(q_obj, h)
+    except ComputationError:
+        return None
+    if np.abs(state.object_pose - q_obj).max() > 1e-9 * sim.size:
+        return None
+    in_region = any(
+        all(region.contains(c.point, c.normal, 1e-7) for c in touch)
+        for finger, region in ((1, right), (2, left))
+        if not region.is_empty
+        and (touch := [c for c in state.contacts if c.body == f"finger{finger}"])
+    )
+    return state if in_region and squeeze_tips(sim, state)[0] else None
+
+
+def _extent_above(vertices: np.ndarray, y: float) -> tuple[float, float]:
+    """Least and greatest x of the part of a convex polygon at heights >= ``y``."""
+    xs = list(vertices[vertices[:, 1] >= y, 0])
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0), strict=True):
+        if (a[1] - y) * (b[1] - y) < 0:  # the edge crosses the height y
+            xs.append(a[0] + (y - a[1]) / (b[1] - a[1]) * (b[0] - a[0]))
+    if not xs:
+        return float(vertices[:, 0].min()), float(vertices[:, 0].max())
+    return min(xs), max(xs)
+
+
+def _hand_through_tips(
+    scene, tip1: np.ndarray, tip2: np.ndarray, palm_angle: float
+) -> np.ndarray | None:
+    """Hand configuration with the fingertips at ``tip1`` and ``tip2``, the palm at
+    ``palm_angle`` and above the tips, and both fingers inclined inward (their tips below
+    and inside their joints); None if there is none within the joint limits."""
+    w = scene.palm.width
+    u = np.array([math.cos(palm_angle), math.sin(palm_angle)])
+    L1, L2 = (f.length for f in scene.fingers)
+    # joint 1 lies on the circle of radius L1 about tip 1 and (joint 2 = joint 1 + w u) on the
+    # circle of radius L2 about tip 2 shifted by -w u
+    c1, c2 = tip1, tip2 - w * u
+    d = float(np.linalg.norm(c2 - c1))
+    if d == 0.0 or d > L1 + L2 or d < abs(L1 - L2):
+        return None
+    a = (L1 * L1 - L2 * L2 + d * d) / (2 * d)
+    off = math.sqrt(max(L1 * L1 - a * a, 0.0))
+    e = (c2 - c1) / d
+    mid = c1 + a * e
+    joint1 = max((mid + off * geo.perp(e), mid - off * geo.perp(e)), key=lambda p: p[1])
+    joint2 = joint1 + w * u
+    q1 = math.atan2(*(tip1 - joint1)[::-1]) - palm_angle
+    q2 = math.atan2(*(tip2 - joint2)[::-1]) - palm_angle
+    q1, q2 = (math.remainder(q, 2 * math.pi) for q in (q1, q2))
+    if not (-math.pi / 2 < q1 < 0.0 and -math.pi < q2 < -math.pi / 2):
+        return None  # a finger not inclined inward: closing would drive its tip down
+    centre = joint1 + 0.5 * w * u
+    h = np.array([centre[0], centre[1], palm_angle, q1, q2])
+    lim = scene.joint_limits
+    return h if np.all(h[3:] >= lim[:, 0]) and np.all(h[3:] <= lim[:, 1]) else None
+
+
+def _support_polygon(obj: np.ndarray, w: float) -> np.ndarray:
+    """The support near the object, as a polygon (for first-touch tests)."""
+    cx = float(obj[:, 0].mean())
+    return np.array([[cx - 5 * w, -5 * w], [cx + 5 * w, -5 * w], [cx + 5 * w, 0], [cx - 5 * w, 0]])
 
 
 def _side_direction(scene, p_C: np.ndarray, hold: int) -> np.ndarray:

@@ -27,7 +27,7 @@ replacement, so the result is still a chain of simulator moves that ends in the 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,12 +68,14 @@ class ExploreResult:
             ``states[k + 1]``.
         moves: hand moves simulated.
         cells: cells in the archive at the end.
+        root: index among the starts of the state the path begins at.
     """
 
     states: list[State] | None
     increments: list[np.ndarray]
     moves: int
     cells: int
+    root: int = 0
 
 
 def hand_increments(scene, sizes: IncrementSizes) -> list[np.ndarray]:
@@ -119,7 +121,7 @@ def _cell(state: State) -> tuple:
 
 
 def explore_lift(
-    start: State,
+    starts: State | Sequence[State],
     move: Move,
     goal: Callable[[State], bool],
     *,
@@ -130,10 +132,11 @@ def explore_lift(
     palm_reach: float = 1.2,
     max_palm_angle: float = 1.5,
 ) -> ExploreResult:
-    """Search hand increments from ``start`` for a state where ``goal`` holds.
+    """Search hand increments from ``starts`` for a state where ``goal`` holds.
 
     Args:
-        start: the state to start from.
+        starts: the state to start from, or several: the archive starts with all of them
+            (one per cell, the first given), and the path found begins at one of them.
         move: simulates one hand increment (see :data:`Move`); it should return None for
             moves the caller refuses. The search refuses in addition moves that do not move
             the hand or put an object back on the support once it has left it (a drop).
@@ -141,7 +144,7 @@ def explore_lift(
         sizes: increment sizes.
         seed: seed of the search's random choices.
         max_moves: budget of simulated moves.
-        palm_rise: the palm stays at most this many palm widths above its start height.
+        palm_rise: the palm stays at most this many palm widths above its highest start.
         palm_reach: the palm's centre stays within this many palm widths of the object's
             centre of mass horizontally.
         max_palm_angle: the palm angle stays within +- this (rad).
@@ -149,14 +152,17 @@ def explore_lift(
     Returns:
         The path found (or None) and the search's effort.
     """
-    scene = start.scene
+    starts = [starts] if isinstance(starts, State) else list(starts)
+    scene = starts[0].scene
     w = scene.palm.width
     rng = np.random.default_rng(seed)
     increments = hand_increments(scene, sizes)
-    y_max = start.hand[1] + palm_rise * w
-    # tree of states: (state, parent index, increment from the parent)
-    nodes: list[tuple[State, int, np.ndarray | None]] = [(start, -1, None)]
-    archive = {_cell(start): 0}
+    y_max = max(st.hand[1] for st in starts) + palm_rise * w
+    # tree of states: (state, parent index, increment from the parent); the starts are roots
+    nodes: list[tuple[State, int, np.ndarray | None]] = [(st, -1, None) for st in starts]
+    archive: dict[tuple, int] = {}
+    for i, st in enumerate(starts):
+        archive.setdefault(_cell(st), i)
     chosen: dict[tuple, int] = {}
     moves = 0
 
@@ -210,7 +216,7 @@ def _result(nodes: list, index: int, moves: int, cells: int) -> ExploreResult:
     chain.reverse()
     states = [nodes[i][0] for i in chain]
     increments = [nodes[i][2] for i in chain[1:]]
-    return ExploreResult(states, increments, moves, cells)
+    return ExploreResult(states, increments, moves, cells, root=chain[0])
 
 
 def shorten(

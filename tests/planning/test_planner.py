@@ -10,10 +10,10 @@ import pytest
 from scipy.optimize import linprog
 
 import grasp_env
-from grasp_env import planning
+from grasp_env import planning, testing
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
-from grasp_env.envs.shapes import random_shape_scene
+from grasp_env.envs.shapes import hand_setup, random_shape_scene, scene_to_dict
 
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
 
@@ -240,3 +240,41 @@ def test_finger_gap_is_the_tip_distance_until_the_fingers_cross():
     assert g == pytest.approx(d) and d < 1.0
     # both closed to 0.3 rad below the palm: their axes cross 0.155 under its centre
     assert gap(-0.3, -math.pi + 0.3)[0] == 0.0
+
+
+def _scene_with_object(vertices) -> grasp_env.Scene:
+    """fig13's hand in the paper's set-up over another object."""
+    base = grasp_env.load_scene("fig13")
+    v = np.array(vertices, float)
+    v[:, 0] += base.object.start_pose[0]
+    d = scene_to_dict(base)
+    h = hand_setup(base, v)
+    d["palm"]["pose"] = h[:3].tolist()
+    d["object"] = {"vertices": v.tolist(), "mass": 0.2}
+    return grasp_env.load_scene(d)
+
+
+# A flat hexagon whose lower sides overhang its 0.1-wide base, widest 0.06 up.
+OVERHANG = [[-0.05, 0.0], [0.05, 0.0], [0.16, 0.06], [0.1, 0.11], [-0.1, 0.11], [-0.16, 0.06]]
+
+
+@pytest.mark.parametrize("palm_angle", [0.0, 0.2])
+def test_scoop_placement_puts_both_fingertips_under_an_overhang(palm_angle):
+    sim = grasp_env.Simulator(_scene_with_object(OVERHANG))
+    state = planning.scoop_placement(sim, palm_angle)
+    assert state is not None
+    assert state.palm_pose[2] == pytest.approx(palm_angle)
+    assert np.allclose(state.object_pose, sim.scene.object.start_pose, atol=1e-12)
+    chk = testing.check_state(state.scene, state.object_pose, state.hand, state.contacts, sim.tol)
+    assert not chk.violations, chk.violations
+    tips = kin.fingertips_W(sim.scene, state.hand)
+    assert np.all(tips[:, 1] < 0.06)  # under the widest points
+    for finger in ("finger1", "finger2"):
+        touch = [c for c in state.contacts if c.body == finger]
+        # each tip pushes up under the overhang (normals into the object)
+        assert touch and all(c.normal[1] > 0.1 for c in touch)
+    # Squeezing lifts the object off the support between the tips, into form closure.
+    end = planning.lift(sim, state)
+    assert end.status == "form_closure", end.message
+    _check_grasp(end.state)
+

@@ -101,13 +101,27 @@ def test_planner_does_not_explore_when_a_placement_lifts():
 
 @pytest.mark.slow
 def test_planner_lifts_tall_rectangle_by_exploring():
-    # Every placement gets stuck (the object lies down); exploratory lifting from the centred
-    # placement turns the palm and lifts it (docs/reproduction.md).
+    # Every placement gets stuck (the object lies down); exploratory lifting, from the states
+    # those attempts passed through, turns the palm and lifts it (docs/reproduction.md).
     plan = planning.plan_grasp("tall_rectangle")
     assert plan.success, plan.message
-    assert plan.placement == "centred, exploratory lifting"
+    assert plan.placement.endswith(", exploratory lifting")
     lifting = [st for st in plan.steps if st.phase == "lifting"]
     assert all(st.note.startswith("explore") for st in lifting)
     palm = plan.steps[0].state.palm_pose
     assert any(not np.allclose(st.state.palm_pose, palm) for st in lifting)
     _check_grasp(lifting[-1].state)
+
+
+def test_explore_lift_starts_from_every_root_and_says_which(fig13):
+    # The archive starts with several states; the path found begins at the one named.
+    sim, start = fig13
+    move = _move(sim)
+    other = move(start, np.array([0.0, 0.0, 0.0, 0.05, -0.05]))
+    found = regrasp.explore_lift([other, start], move, planning.grasped, seed=0, max_moves=2000)
+    assert found.states is not None
+    assert found.states[0] is (other, start)[found.root]
+    state = found.states[0]
+    for dh, expected in zip(found.increments, found.states[1:], strict=True):
+        state = move(state, dh)
+        np.testing.assert_array_equal(state.object_pose, expected.object_pose)
