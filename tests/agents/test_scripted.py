@@ -201,12 +201,28 @@ def test_scripted_policy_succeeds_on_every_tippable_scene(scene, start):
     assert info["is_success"]
 
 
+#: The policy's exploratory lifting runs from the env's state on the env's step function;
+#: from tall_rectangle's pre-liftoff start (fingers closed on it) it finds no re-grasp within
+#: its budget, from the scene start it does.
+EXPLORE_MISSES = {("tall_rectangle", "preliftoff")}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "scene",
-    [pytest.param(s, marks=_xfail(s, True), id=s) for s in sorted(NEEDS_PALM)],
+    ("scene", "start"),
+    [
+        pytest.param(
+            s,
+            start,
+            marks=[pytest.mark.xfail(strict=True, reason="see EXPLORE_MISSES")]
+            if (s, start) in EXPLORE_MISSES
+            else [],
+            id=f"{start}-{s}",
+        )
+        for start in ("preliftoff", "scene")
+        for s in sorted(NEEDS_PALM)
+    ],
 )
-@pytest.mark.parametrize("start", ["preliftoff", "scene"])
 def test_scripted_policy_lifts_with_palm_motion(scene, start):
     # ~1-2 min a scene: the whole planner's search for a placement (cached for the 2nd
     # start), then a tilted-palm placement or (tall_rectangle) exploratory lifting
