@@ -11,8 +11,9 @@ hand, object, contacts with force arrows, a title per frame, a legend), ``grip_b
 adjustment evaluated, zoomed to the adjustment, like Fig. 14), ``plan.gif`` (the whole
 plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase);
 the images are drawn by :mod:`agents.plan_figures`.
-It prints a summary and exits with status 0 on form closure, 1 if the plan fails (3 if the
-object cannot be lifted without friction), 2 on bad arguments. The images need the ``viz``
+It prints a summary and exits with status 0 on form closure, 1 if the plan fails (the object
+is tippable but no grasp was found; the summary says why), 3 if the object cannot be lifted
+without friction (both tippability regions empty), 2 on bad arguments. The images need the ``viz``
 extra (matplotlib, imageio).
 
 Policy::

@@ -85,12 +85,16 @@ class Plan:
 
     Attributes:
         steps: every state the plan passed through, in order.
-        status: ``"form_closure"`` (success), ``"not_tippable"`` (empty tippability regions or
-            no tipping placement), ``"stuck"`` (lifting found no useful increment) or
-            ``"error"``.
+        status: ``"form_closure"`` (success), ``"not_tippable"`` (both tippability regions
+            empty: no frictionless grasp can lift the object), ``"stuck"`` (the object is
+            tippable but no placement, lifting or exploration found a grasp; ``message`` says
+            why) or ``"error"``.
         message: a sentence on how the plan ended.
-        placement: ``"tippability"`` (a fingertip at a support contact, Fig. 4) or
-            ``"centred"`` (the paper's fallback).
+        placement: the pre-liftoff placement the plan starts from: ``"tippability (...)"``
+            (a fingertip at a support contact, Fig. 4), ``"scoop (...)"`` (both fingertips
+            low at the support, :func:`grasp_env.planning.scoop_placement`) or ``"centred"``
+            (the paper's fallback), followed by ``", exploratory lifting"`` where lifting
+            needed palm motion.
         cpu_time: process time spent planning, seconds.
         grip_probes: what the grip adjustment evaluated (:class:`BranchProbe`, one per branch
             and step, in order); a record for plots (Fig. 14), not used by the planner.

@@ -323,6 +323,21 @@ def test_policies_meet_the_same_heldout_shapes():
     assert np.array_equal(obs[0], obs[1]) and np.any(obs[0] != 0)
 
 
+def test_wide_suite_draws_from_the_wide_ranges():
+    # Over 40 held-out seeds the wide suite's shapes use vertex counts beyond the default 8
+    # and stay within 3-12; the default suite's never exceed 8.
+    counts = {}
+    for suite, kwargs in ev.SHAPE_SUITES.items():
+        env = ev.make_env(ev.PolicySpec("random", "random", ev.RANDOM_KWARGS), kwargs, 4)
+        counts[suite] = []
+        for k in range(40):
+            env.reset(seed=ev.HELDOUT_SEED + k)
+            counts[suite].append(len(env.unwrapped.scene.object.vertices_B))
+        env.close()
+    assert 3 <= min(counts["wide"]) and max(counts["wide"]) <= 12
+    assert max(counts["wide"]) > 8 and max(counts["heldout"]) <= 8
+
+
 @pytest.mark.parametrize(
     ("k", "n", "low", "high"),
     [(0, 10, 0.0, 0.2775), (10, 10, 0.7225, 1.0), (5, 10, 0.2366, 0.7634)],
