@@ -202,8 +202,9 @@ def _hand_through_tips(
     scene, tip1: np.ndarray, tip2: np.ndarray, palm_angle: float
 ) -> np.ndarray | None:
     """Hand configuration with the fingertips at ``tip1`` and ``tip2``, the palm at
-    ``palm_angle`` and above the tips, and both fingers inclined inward (their tips below
-    and inside their joints); None if there is none within the joint limits."""
+    ``palm_angle`` and above the tips, and both fingers pointing down and inward in the world
+    (their tips below and inside their joints, so that closing raises them); None if there
+    is none within the joint limits."""
     w = scene.palm.width
     u = np.array([math.cos(palm_angle), math.sin(palm_angle)])
     L1, L2 = (f.length for f in scene.fingers)
@@ -222,8 +223,9 @@ def _hand_through_tips(
     q1 = math.atan2(*(tip1 - joint1)[::-1]) - palm_angle
     q2 = math.atan2(*(tip2 - joint2)[::-1]) - palm_angle
     q1, q2 = (math.remainder(q, 2 * math.pi) for q in (q1, q2))
-    if not (-math.pi / 2 < q1 < 0.0 and -math.pi < q2 < -math.pi / 2):
-        return None  # a finger not inclined inward: closing would drive its tip down
+    (x1, y1), (x2, y2) = tip1 - joint1, tip2 - joint2
+    if not (y1 < 0.0 < x1 and y2 < 0.0 and x2 < 0.0):
+        return None  # a finger not pointing down and inward: closing would drive its tip down
     centre = joint1 + 0.5 * w * u
     h = np.array([centre[0], centre[1], palm_angle, q1, q2])
     lim = scene.joint_limits

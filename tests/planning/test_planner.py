@@ -94,14 +94,14 @@ def _random_shape_plan(seed: int):
     return planning.plan_grasp(scene), grasp_env.Simulator(scene)
 
 
-@pytest.mark.parametrize("case", ["fig13", "random_shape_4"])
+@pytest.mark.parametrize("case", ["fig13", "random_shape_19"])
 def test_grip_adjustment_descends_to_a_local_minimum(case, fig13_plan):
-    # random shape 4 reaches form closure in a jam on a four-contact branch that curves away
+    # random shape 19 reaches form closure in a jam on a four-contact branch that curves away
     # from every straight hand move: grip adjustment goes through via points.
     if case == "fig13":
         plan, sim = fig13_plan, grasp_env.Simulator("fig13")
     else:
-        plan, sim = _random_shape_plan(4)
+        plan, sim = _random_shape_plan(19)
         assert plan.success and any(st.note == "via" for st in plan.steps)
     fc = plan.form_closure_step()
     grips = [st.grip for st in plan.steps[fc:] if st.note != "via"]
@@ -278,3 +278,22 @@ def test_scoop_placement_puts_both_fingertips_under_an_overhang(palm_angle):
     assert end.status == "form_closure", end.message
     _check_grasp(end.state)
 
+
+@pytest.mark.parametrize("palm_angle", [-0.3, 0.0, 0.4])
+def test_hand_through_tips_puts_the_fingertips_where_asked(palm_angle):
+    # Checked with the forward kinematics: the tips land on the targets, the palm at the
+    # angle asked, and each finger points inward and down from its joint.
+    from grasp_env.planning.preliftoff import _hand_through_tips
+
+    scene = grasp_env.load_scene("fig13")
+    tips = np.array([[-0.12, 0.03], [0.16, 0.04]])
+    h = _hand_through_tips(scene, tips[0], tips[1], palm_angle)
+    assert h is not None and h[2] == palm_angle
+    np.testing.assert_allclose(kin.fingertips_W(scene, h), tips, atol=1e-12)
+    joints = kin.body_poses_W(scene, h)[1:, :2]
+    assert np.all(joints[:, 1] > tips[:, 1])
+    assert joints[0, 0] < tips[0, 0] and joints[1, 0] > tips[1, 0]
+    # None when the tips are farther apart than the hand spans, or when a finger would point
+    # outward (palm turned -0.4: finger 1 would hang down and to the left of its joint)
+    assert _hand_through_tips(scene, np.array([-2.0, 0.03]), np.array([2.0, 0.03]), 0.0) is None
+    assert _hand_through_tips(scene, tips[0], tips[1], -0.4) is None
