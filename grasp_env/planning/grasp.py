@@ -100,7 +100,7 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         log.info("  %s", tried[-1][2].message)
         if tried[-1][2].status == "form_closure":
             break
-    why = _stuck_reason(tried)
+    why = _stuck_reason(tried, (left, right), sim.scene)
     if not (tried and tried[-1][2].status == "form_closure") and explore_moves > 0:
         log.info("exploratory lifting with palm motion (up to %d moves)", explore_moves)
         leads = [_lead(start, phase) for _, start, phase in tried] + [([centred], [])]
@@ -128,16 +128,34 @@ def _lead(start: State, phase: PhaseResult) -> tuple[list[State], list[np.ndarra
     return states, [b.hand - a.hand for a, b in itertools.pairwise(states)]
 
 
-def _stuck_reason(tried: list[tuple[str, State, PhaseResult]]) -> str:
-    """Why lifting with the palm fixed failed: per reason, from how many placements."""
+def _stuck_reason(tried: list[tuple[str, State, PhaseResult]], regions, scene) -> str:
+    """Why lifting with the palm fixed failed: per reason, from how many placements; with no
+    placement at all, whether the regions lie below the fingers' thickness (where the
+    measured failures of that kind are: flat objects whose overhangs no fingertip got under)."""
     if not tried:
-        return (
+        why = (
             "no tipping placement: no fingertip placement reaches a tippability region and "
             "squeezing the centred hand does not move the object"
         )
+        top = _region_top(regions)
+        thick = min(f.thickness for f in scene.fingers)
+        if top < thick:
+            why += (
+                f" (the regions lie at most {top:.3g} above the support, below the fingers' "
+                f"thickness, {thick:.3g})"
+            )
+        return why
     counts = Counter(phase.message for _, _, phase in tried)
     parts = ", ".join(f"{why} ({n} of {len(tried)})" for why, n in counts.items())
     return f"fixed-palm lifting stuck from every placement: {parts}"
+
+
+def _region_top(regions) -> float:
+    """Height above the support of the highest point of the tippability regions."""
+    heights = [max(e.start_W[1], e.end_W[1]) for region in regions for e in region.edges] + [
+        region.vertices_W[v.vertex, 1] for region in regions for v in region.vertices
+    ]
+    return float(max(heights, default=0.0))
 
 
 def explore(

@@ -15,10 +15,12 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 from image_checks import ink_runs
 
 import grasp_env
-from agents.scripted import EXIT_NOT_TIPPABLE, ScriptedPolicy, main
+from agents.scripted import EXIT_FAILED, EXIT_NOT_TIPPABLE, ScriptedPolicy, main
+from grasp_env.envs.shapes import hand_setup, scene_to_dict
 
 ROOT = Path(__file__).resolve().parents[2]
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
@@ -244,3 +246,24 @@ def test_scripted_policy_drives_the_palm_to_a_random_shapes_placement(seed):
     assert info["is_success"] and not info["dropped"]
     assert first_success is not None and first_success < steps
     assert np.abs(info["palm_pose"] - start_palm).max() > 0.05  # the palm was moved
+
+
+def test_cli_exits_1_with_the_reason_when_a_tippable_object_is_not_lifted(tmp_path, capsys):
+    # A flat hexagon 0.04 high: tippable (its overhangs are tippability regions) but no
+    # placement reaches them; the CLI writes the attempt and says why (exit 1, not 3).
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("imageio")
+    base = grasp_env.load_scene("fig13")
+    d = json.loads(json.dumps(scene_to_dict(base), default=float))
+    v = np.array(
+        [[-0.05, 0.0], [0.05, 0.0], [0.15, 0.02], [0.12, 0.04], [-0.12, 0.04], [-0.15, 0.02]]
+    )
+    d["object"] = {"vertices": v.tolist(), "mass": 0.2}
+    d["palm"]["pose"] = hand_setup(base, v)[:3].tolist()
+    path = tmp_path / "flat.yaml"
+    path.write_text(yaml.safe_dump(d))
+    assert main(["--scene", str(path), "--out", str(tmp_path / "out")]) == EXIT_FAILED
+    out = capsys.readouterr().out
+    assert "no tipping placement" in out
+    for name in ("plan.json", "filmstrip.png", "plan.gif"):
+        assert (tmp_path / "out" / name).stat().st_size > 0, name

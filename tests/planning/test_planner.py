@@ -297,3 +297,17 @@ def test_hand_through_tips_puts_the_fingertips_where_asked(palm_angle):
     # outward (palm turned -0.4: finger 1 would hang down and to the left of its joint)
     assert _hand_through_tips(scene, np.array([-2.0, 0.03]), np.array([2.0, 0.03]), 0.0) is None
     assert _hand_through_tips(scene, tips[0], tips[1], -0.4) is None
+
+
+def test_a_tippable_object_without_placement_is_stuck_with_the_reason():
+    # A flat hexagon 0.04 high whose overhangs (the tippability regions) end 0.02 above the
+    # support: tippable by the paper's criterion, but no placement's first finger contact
+    # lands in a region. The plan is stuck (CLI exit 1), not "not tippable" (exit 3).
+    flat = [[-0.05, 0.0], [0.05, 0.0], [0.15, 0.02], [0.12, 0.04], [-0.12, 0.04], [-0.15, 0.02]]
+    scene = _scene_with_object(flat)
+    left, right = grasp_env.tippability_regions(scene)
+    assert not (left.is_empty and right.is_empty)
+    plan = planning.plan_grasp(scene, explore_moves=0)
+    assert plan.status == "stuck"
+    assert plan.message.startswith("no tipping placement")
+    assert "at most 0.02 above the support, below the fingers' thickness, 0.05" in plan.message
