@@ -6,7 +6,9 @@
 Suites: ``bundled`` (every bundled scene, ``--bundled-episodes`` seeds each), ``heldout``
 (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds that
 training never uses) and ``wide`` (``--wide-episodes`` such shapes in the randomizer's wider
-ranges, 3-12 vertices and aspect to 1:5). Every policy meets the same scenes and seeds. Writes
+ranges, 3-12 vertices and aspect to 1:5) and ``perturbed`` (``--perturbed-episodes`` fig13
+episodes from the env's ``"random"`` start, the pre-liftoff placement perturbed). Every
+policy meets the same scenes and seeds. Writes
 ``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
 printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
 into ``--out``. See ``docs/training.md`` for the metrics.
@@ -47,8 +49,11 @@ HELDOUT_KWARGS = {"scene": "fig13", "shape_randomizer": True}
 #: Env kwargs of the wide held-out suite: the same with the randomizer's wider ranges
 #: (``grasp_env.envs.shapes.WIDE_SHAPE_RANGES``: 3-12 vertices, aspect to 1:5).
 WIDE_KWARGS = {"scene": "fig13", "shape_randomizer": dict(WIDE_SHAPE_RANGES)}
-#: Env kwargs of the random-shape suites, by suite name.
-SHAPE_SUITES = {"heldout": HELDOUT_KWARGS, "wide": WIDE_KWARGS}
+#: Env kwargs of the perturbed-start suite: fig13 from the ``"random"`` start (the pre-liftoff
+#: placement perturbed in palm pose and finger angles), one draw per seed.
+PERTURBED_KWARGS = {"scene": "fig13", "start": "random"}
+#: Env kwargs of the seeded suites, by suite name (every policy meets the same draws).
+SHAPE_SUITES = {"heldout": HELDOUT_KWARGS, "wide": WIDE_KWARGS, "perturbed": PERTURBED_KWARGS}
 #: Env set-up of the scripted planner (``agents.scripted.ScriptedPolicy``, which plans from
 #: the env's state at every reset with exact knowledge of the scene, as the paper assumes):
 #: the scene's start with palm actions, so that where lifting with the palm fixed fails (as
@@ -241,7 +246,7 @@ def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
     """One row per (suite, policy): rates with Wilson CIs, means with bootstrap CIs.
 
     Suites: the paper's scene alone (``fig13``), all bundled scenes, the held-out shapes in the
-    default and the wide ranges.
+    default and the wide ranges, fig13 from perturbed starts.
     """
     rows = []
     groups = {
@@ -249,6 +254,7 @@ def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
         "bundled": [e for e in episodes if e.suite == "bundled"],
         "heldout": [e for e in episodes if e.suite == "heldout"],
         "wide": [e for e in episodes if e.suite == "wide"],
+        "perturbed": [e for e in episodes if e.suite == "perturbed"],
     }
     policies = list(dict.fromkeys(e.policy for e in episodes))
     for (suite, group), policy in itertools.product(groups.items(), policies):
@@ -390,6 +396,7 @@ def evaluate(
     max_steps: int | None = None,
     workers: int = 1,
     wide_episodes: int = 0,
+    perturbed_episodes: int = 0,
 ) -> list[dict[str, Any]]:
     """Run every policy on every suite, write every output into ``out``; returns the rows."""
     out.mkdir(parents=True, exist_ok=True)
@@ -401,8 +408,12 @@ def evaluate(
         for seed in range(bundled_episodes)
     ]
     jobs += [
-        (spec, suite, f"shape_{HELDOUT_SEED + k}", HELDOUT_SEED + k, max_steps)
-        for suite, n in (("heldout", episodes), ("wide", wide_episodes))
+        (spec, suite, _suite_scene(suite, HELDOUT_SEED + k), HELDOUT_SEED + k, max_steps)
+        for suite, n in (
+            ("heldout", episodes),
+            ("wide", wide_episodes),
+            ("perturbed", perturbed_episodes),
+        )
         for spec in specs
         for k in range(n)
     ]
@@ -423,6 +434,11 @@ def evaluate(
         run_episode(spec, "bundled", GIF_SCENE, 0, max_steps, frames)
         write_gif(out / f"{spec.name}.gif", frames, FrictionlessGraspEnv.metadata["render_fps"])
     return rows
+
+
+def _suite_scene(suite: str, seed: int) -> str:
+    """The scene column of a seeded suite's episode."""
+    return SHAPE_SUITES[suite]["scene"] if suite == "perturbed" else f"shape_{seed}"
 
 
 def _progress(episodes, total: int) -> list[Episode]:
@@ -467,6 +483,12 @@ def main(argv: list[str] | None = None) -> None:
         default=0,
         help="held-out shapes in the randomizer's wide ranges (suite 'wide')",
     )
+    parser.add_argument(
+        "--perturbed-episodes",
+        type=nonnegative_int,
+        default=0,
+        help="fig13 episodes from perturbed starts (start='random', suite 'perturbed')",
+    )
     parser.add_argument("--bundled-episodes", type=positive_int, default=1, help="per scene")
     parser.add_argument(
         "--scene", "--scenes", dest="scenes", nargs="+", help="bundled scenes (default: all)"
@@ -495,6 +517,7 @@ def main(argv: list[str] | None = None) -> None:
         args.max_steps,
         args.workers,
         args.wide_episodes,
+        args.perturbed_episodes,
     )
     print(markdown_table(rows), end="")
     print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")

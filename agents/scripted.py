@@ -287,9 +287,10 @@ class ScriptedPolicy:
         planner's grasp (any of its placements, tilted palm included), reached from the env's
         state along :func:`grasp_env.planning.approach_path`. Only while the object still rests
         at its scene pose (the plan starts there), to within ``REPLAN_TOL`` (closing the
-        fingers on it at the pre-liftoff start can move it by round-off). At the placement, lifting is planned anew
-        from the env's state (:meth:`act`): the planned squeeze can cross a tipping
-        bifurcation, where round-off in the env's hand (float32 actions) changes the outcome."""
+        fingers on it at the pre-liftoff start can move it by round-off). At the placement,
+        lifting is planned anew from the env's state (:meth:`act`): the planned squeeze can
+        cross a tipping bifurcation, where round-off in the env's hand (float32 actions)
+        changes the outcome."""
         scene = sim.scene
         if np.abs(state.object_pose - scene.object.start_pose).max() > REPLAN_TOL * sim.size:
             return False

@@ -323,6 +323,21 @@ def test_policies_meet_the_same_heldout_shapes():
     assert np.array_equal(obs[0], obs[1]) and np.any(obs[0] != 0)
 
 
+def test_policies_meet_the_same_perturbed_fig13_starts():
+    # Every policy's env starts the perturbed suite's episode from the same hand, drawn by the
+    # seed: the pre-liftoff placement perturbed, so it differs between seeds.
+    hands = {}
+    for kind, kwargs in (("scripted", ev.SCRIPTED_KWARGS), ("random", ev.RANDOM_KWARGS)):
+        env = ev.make_env(ev.PolicySpec(kind, kind, kwargs), ev.PERTURBED_KWARGS, 4)
+        hands[kind] = []
+        for k in range(2):
+            env.reset(seed=ev.HELDOUT_SEED + k)
+            hands[kind].append(env.unwrapped.state.hand.copy())
+        env.close()
+    np.testing.assert_array_equal(hands["scripted"], hands["random"])
+    assert np.abs(hands["random"][0] - hands["random"][1]).max() > 1e-6
+
+
 def test_wide_suite_draws_from_the_wide_ranges():
     # Over 40 held-out seeds the wide suite's shapes use vertex counts beyond the default 8
     # and stay within 3-12; the default suite's never exceed 8.

@@ -5,6 +5,7 @@ brute force, :mod:`grasp_env.core.kinematics` against the independent polygons o
 from __future__ import annotations
 
 import cmath
+import functools
 import math
 
 import numpy as np
@@ -183,6 +184,11 @@ def test_point_velocity_is_the_derivative_of_the_material_point() -> None:
         assert not kin.point_velocity_W(scene, h, dh, geo.SUPPORT, p).any()
 
 
+def _turned_depth(a: np.ndarray, b: np.ndarray, sign: float, t: float) -> float:
+    """Independent overlap depth of ``a`` turned by ``sign * t`` about the origin and ``b``."""
+    return testing.sat_depth(geo.rotate(a, sign * t), b)
+
+
 @pytest.mark.parametrize("ccw", [True, False])
 def test_turn_to_contact_matches_a_scan_of_the_overlap(ccw: bool) -> None:
     # Independent check: scan the turn in fine steps with the separating-axis test of
@@ -197,8 +203,8 @@ def test_turn_to_contact_matches_a_scan_of_the_overlap(ccw: bool) -> None:
         centre = np.zeros(2)
         if testing.sat_depth(a, b) > 0:
             continue
-        depth = lambda t: testing.sat_depth(geo.rotate(a, sign * t), b)  # noqa: E731
         grid = np.linspace(0.0, 2.0 * math.pi, 1201)
+        depth = functools.partial(_turned_depth, a, b, sign)
         inside = [t for t in grid if depth(t) > 0]
         turn = geo.turn_to_contact(a, centre, b, ccw=ccw)
         if not inside:
