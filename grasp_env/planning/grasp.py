@@ -130,8 +130,7 @@ def _lead(start: State, phase: PhaseResult) -> tuple[list[State], list[np.ndarra
 
 def _stuck_reason(tried: list[tuple[str, State, PhaseResult]], regions, scene) -> str:
     """Why lifting with the palm fixed failed: per reason, from how many placements; with no
-    placement at all, whether the regions lie below the fingers' thickness (where the
-    measured failures of that kind are: flat objects whose overhangs no fingertip got under)."""
+    placement at all, also whether the regions lie lower than the fingers are thick."""
     if not tried:
         why = (
             "no tipping placement: no fingertip placement reaches a tippability region and "
