@@ -17,7 +17,7 @@ from grasp_env.errors import ComputationError
 from grasp_env.mechanics.tippability import tippability_regions
 from grasp_env.planning import regrasp
 from grasp_env.planning.grip import adjust_grip
-from grasp_env.planning.lifting import lift
+from grasp_env.planning.lifting import lift, stuck_condition
 from grasp_env.planning.plan import (
     PhaseResult,
     Plan,
@@ -100,7 +100,7 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         log.info("  %s", tried[-1][2].message)
         if tried[-1][2].status == "form_closure":
             break
-    why = _stuck_reason(tried, (left, right), sim.scene)
+    why = _stuck_reason(sim, tried, (left, right))
     if not (tried and tried[-1][2].status == "form_closure") and explore_moves > 0:
         log.info("exploratory lifting with palm motion (up to %d moves)", explore_moves)
         leads = [_lead(start, phase) for _, start, phase in tried] + [([centred], [])]
@@ -128,8 +128,9 @@ def _lead(start: State, phase: PhaseResult) -> tuple[list[State], list[np.ndarra
     return states, [b.hand - a.hand for a, b in itertools.pairwise(states)]
 
 
-def _stuck_reason(tried: list[tuple[str, State, PhaseResult]], regions, scene) -> str:
-    """Why lifting with the palm fixed failed: per reason, from how many placements; with no
+def _stuck_reason(sim: Simulator, tried: list[tuple[str, State, PhaseResult]], regions) -> str:
+    """Why lifting with the palm fixed failed: how it left the object
+    (:func:`~grasp_env.planning.lifting.stuck_condition`), from how many placements; with no
     placement at all, also whether the regions lie lower than the fingers are thick."""
     if not tried:
         why = (
@@ -137,14 +138,14 @@ def _stuck_reason(tried: list[tuple[str, State, PhaseResult]], regions, scene) -
             "squeezing the centred hand does not move the object"
         )
         top = _region_top(regions)
-        thick = min(f.thickness for f in scene.fingers)
+        thick = min(f.thickness for f in sim.scene.fingers)
         if top < thick:
             why += (
                 f" (the regions lie at most {top:.3g} above the support, below the fingers' "
                 f"thickness, {thick:.3g})"
             )
         return why
-    counts = Counter(phase.message for _, _, phase in tried)
+    counts = Counter(stuck_condition(sim, phase.state) for _, _, phase in tried)
     parts = ", ".join(f"{why} ({n} of {len(tried)})" for why, n in counts.items())
     return f"fixed-palm lifting stuck from every placement: {parts}"
 

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from grasp_env.core import geometry as geo
 from grasp_env.core.state import State
 from grasp_env.mechanics.width import object_width
 from grasp_env.planning.plan import (
@@ -101,7 +102,10 @@ def lift(sim: Simulator, state: State, dq: float = 0.02, max_steps: int = 300) -
             ):
                 chosen = best[1]
         if chosen is None:
-            message = "no lifting increment brings the object closer to the palm"
+            message = (
+                "no lifting increment brings the object closer to the palm: "
+                f"{stuck_condition(sim, state)}"
+            )
             return PhaseResult(tuple(steps), state, "stuck", message)
         for state in chosen:
             lifted = lifted or not state.on_support
@@ -112,6 +116,23 @@ def lift(sim: Simulator, state: State, dq: float = 0.02, max_steps: int = 300) -
             since_record += 1
     message = f"no form closure after {max_steps} lifting steps"
     return PhaseResult(tuple(steps), state, "stuck", message)
+
+
+def stuck_condition(sim: Simulator, state: State) -> str:
+    """How a stuck lifting attempt left the object: off the support without form closure,
+    tipped over onto another face, wedged (the hand jams), tilted on one support vertex, or
+    resting on its face."""
+    if not state.on_support:
+        return "the object is off the support, not in form closure"
+    low = geo.transform(state.object_pose, sim.scene.object.vertices_B)[:, 1] <= sim.tol
+    start = sim.scene.object.vertices_W0[:, 1] <= sim.tol
+    if np.any(low & ~start):
+        return "the object has tipped over onto another face"
+    if state.jammed:
+        return "the hand wedges the object"
+    if np.count_nonzero(low) == 1:
+        return "the object leans on one support vertex"
+    return "the object rests on its face"
 
 
 def _admissible(nxt: State | None, prev: State, lifted: bool, width: float) -> bool:

@@ -311,3 +311,17 @@ def test_a_tippable_object_without_placement_is_stuck_with_the_reason():
     assert plan.status == "stuck"
     assert plan.message.startswith("no tipping placement")
     assert "at most 0.02 above the support, below the fingers' thickness, 0.05" in plan.message
+
+
+def test_stuck_lifting_says_how_it_left_the_object():
+    # tall_rectangle (0.15 x 0.5, standing): from the right tipping placement it tips over and
+    # lies down, which the message says; checked here on the end state's own vertices: a
+    # vertex that started above the support is now on it, lying along the support.
+    sim = grasp_env.Simulator("tall_rectangle")
+    start, _ = planning.tipping_placement(sim, sides=("right",))
+    result = planning.lift(sim, start)
+    assert result.status == "stuck"
+    assert result.message.endswith(": the object has tipped over onto another face")
+    now = geo.transform(result.state.object_pose, sim.scene.object.vertices_B)[:, 1]
+    before = sim.scene.object.vertices_W0[:, 1]
+    assert np.any((np.abs(now) < 1e-9) & (before > 0.1))
