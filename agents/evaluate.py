@@ -3,12 +3,14 @@
     python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
         [--out DIR] [--workers 2]
 
-Suites: ``bundled`` (every bundled scene, ``--bundled-episodes`` seeds each), ``heldout``
-(``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds that
-training never uses) and ``wide`` (``--wide-episodes`` such shapes in the randomizer's wider
-ranges, 3-12 vertices and aspect to 1:5) and ``perturbed`` (``--perturbed-episodes`` fig13
-episodes from the env's ``"random"`` start, the pre-liftoff placement perturbed). Every
-policy meets the same scenes and seeds. Writes
+Suites: ``bundled`` (every bundled scene from its start, ``--bundled-episodes`` seeds each),
+``heldout`` (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds
+that training never uses, the hand starting where the scene puts it), ``wide``
+(``--wide-episodes`` such shapes in the randomizer's wider ranges, 3-12 vertices and aspect
+to 1:5), ``lift`` (``--lift-episodes`` of the held-out shapes from the planner's first
+pre-liftoff placement, ``start="placement"``) and ``perturbed`` (``--perturbed-episodes``
+fig13 episodes from the env's ``"random"`` start, the pre-liftoff placement perturbed). Every
+policy meets the same scenes, starts and seeds. Writes
 ``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
 printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
 into ``--out``. See ``docs/training.md`` for the metrics.
@@ -44,16 +46,26 @@ from grasp_env.envs.shapes import WIDE_SHAPE_RANGES
 #: First seed of the held-out shapes. Training seeds its envs with ``seed + rank`` and its
 #: evaluation env with ``seed + 1000`` (small seeds); these streams never meet them.
 HELDOUT_SEED = 1_000_000
-#: Env kwargs of the held-out suite: fig13's hand, a new random shape per seed.
-HELDOUT_KWARGS = {"scene": "fig13", "shape_randomizer": True}
+#: Env kwargs of the held-out suite: fig13's hand, a new random shape per seed, the hand
+#: starting where the scene puts it (the "from anywhere" task).
+HELDOUT_KWARGS = {"scene": "fig13", "shape_randomizer": True, "start": "scene"}
 #: Env kwargs of the wide held-out suite: the same with the randomizer's wider ranges
 #: (``grasp_env.envs.shapes.WIDE_SHAPE_RANGES``: 3-12 vertices, aspect to 1:5).
-WIDE_KWARGS = {"scene": "fig13", "shape_randomizer": dict(WIDE_SHAPE_RANGES)}
+WIDE_KWARGS = {"scene": "fig13", "shape_randomizer": dict(WIDE_SHAPE_RANGES), "start": "scene"}
+#: Env kwargs of the lifting suite: the held-out shapes, the hand starting at the planner's
+#: first pre-liftoff placement for each (``start="placement"``, the task of
+#: ``FrictionlessGraspLift-v0``).
+LIFT_KWARGS = {"scene": "fig13", "shape_randomizer": True, "start": "placement"}
 #: Env kwargs of the perturbed-start suite: fig13 from the ``"random"`` start (the pre-liftoff
 #: placement perturbed in palm pose and finger angles), one draw per seed.
 PERTURBED_KWARGS = {"scene": "fig13", "start": "random"}
 #: Env kwargs of the seeded suites, by suite name (every policy meets the same draws).
-SHAPE_SUITES = {"heldout": HELDOUT_KWARGS, "wide": WIDE_KWARGS, "perturbed": PERTURBED_KWARGS}
+SHAPE_SUITES = {
+    "heldout": HELDOUT_KWARGS,
+    "wide": WIDE_KWARGS,
+    "lift": LIFT_KWARGS,
+    "perturbed": PERTURBED_KWARGS,
+}
 #: Env set-up of the scripted planner (``agents.scripted.ScriptedPolicy``, which plans from
 #: the env's state at every reset with exact knowledge of the scene, as the paper assumes):
 #: the scene's start with palm actions, so that where lifting with the palm fixed fails (as
@@ -63,7 +75,7 @@ SCRIPTED_KWARGS = {"palm_control": True, "start": "scene"}
 #: Env set-up of the random policy: the paper's (palm fixed where the scene puts it).
 RANDOM_KWARGS = {"palm_control": False, "start": "scene"}
 #: Env kwargs that a suite sets and a policy's own set-up must not override.
-SUITE_KEYS = ("scene", "shape_randomizer")
+SUITE_KEYS = ("scene", "shape_randomizer", "start")
 GIF_SCENE, GIF_SIZE, GIF_EVERY = "fig13", (320, 240), 2
 BOOTSTRAP_SAMPLES = 2000
 
@@ -254,6 +266,7 @@ def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
         "bundled": [e for e in episodes if e.suite == "bundled"],
         "heldout": [e for e in episodes if e.suite == "heldout"],
         "wide": [e for e in episodes if e.suite == "wide"],
+        "lift": [e for e in episodes if e.suite == "lift"],
         "perturbed": [e for e in episodes if e.suite == "perturbed"],
     }
     policies = list(dict.fromkeys(e.policy for e in episodes))
@@ -397,6 +410,7 @@ def evaluate(
     workers: int = 1,
     wide_episodes: int = 0,
     perturbed_episodes: int = 0,
+    lift_episodes: int = 0,
 ) -> list[dict[str, Any]]:
     """Run every policy on every suite, write every output into ``out``; returns the rows."""
     out.mkdir(parents=True, exist_ok=True)
@@ -412,6 +426,7 @@ def evaluate(
         for suite, n in (
             ("heldout", episodes),
             ("wide", wide_episodes),
+            ("lift", lift_episodes),
             ("perturbed", perturbed_episodes),
         )
         for spec in specs
@@ -484,6 +499,12 @@ def main(argv: list[str] | None = None) -> None:
         help="held-out shapes in the randomizer's wide ranges (suite 'wide')",
     )
     parser.add_argument(
+        "--lift-episodes",
+        type=nonnegative_int,
+        default=0,
+        help="held-out shapes from the planner's pre-liftoff placement (suite 'lift')",
+    )
+    parser.add_argument(
         "--perturbed-episodes",
         type=nonnegative_int,
         default=0,
@@ -518,6 +539,7 @@ def main(argv: list[str] | None = None) -> None:
         args.workers,
         args.wide_episodes,
         args.perturbed_episodes,
+        args.lift_episodes,
     )
     print(markdown_table(rows), end="")
     print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")

@@ -48,10 +48,9 @@ import numpy as np
 import yaml
 
 from grasp_env.cli import positive_int
-from grasp_env.envs import ENTRY_POINT, ENV_ID, RANDOM_SHAPES_ENV_ID
+from grasp_env.envs import ENTRY_POINT, ENV_ID, LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
+from grasp_env.envs.frictionless_grasp import REWARD_TERMS
 
-#: Reward terms of FrictionlessGrasp (``info["reward_<term>"]``), summed per episode.
-REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
 #: Keys the Monitor CSV of :func:`make_env` records at each episode's end.
 MONITOR_KEYWORDS = ("is_success", *(f"ep_reward_{t}" for t in REWARD_TERMS))
 #: Keys of a config entry that are not PPO constructor arguments (the zoo's, and ``env_id``,
@@ -79,7 +78,11 @@ DEFAULT_CONFIG = "configs/ppo.yml"
 DEFAULT_LOG_FOLDER = "runs"
 MODEL_DIR = Path(__file__).resolve().parent / "models"
 #: The shipped model directory (``agents/models/<name>``) of each env id.
-SHIPPED = {ENV_ID: "fig13_fingers", RANDOM_SHAPES_ENV_ID: "random_shapes_palm"}
+SHIPPED = {
+    ENV_ID: "fig13_fingers",
+    RANDOM_SHAPES_ENV_ID: "random_shapes_palm",
+    LIFT_ENV_ID: "lift_palm",
+}
 #: Config names of the former scheme (top-level keys were config names), still accepted.
 LEGACY_NAMES = {name: env_id for env_id, name in SHIPPED.items()}
 
@@ -718,21 +721,28 @@ def load_agent(model_dir: str | os.PathLike):
     folder's name). The entry's ``env_kwargs`` are complete: the env id's registered ones
     updated with the config's (and the zoo's ``--env-kwargs``).
     """
-    import pickle
-
     from stable_baselines3 import PPO
 
+    name, entry, model_file, norm_file = read_model_dir(model_dir)
+    if not model_file.is_file():
+        raise ValueError(
+            f"model directory {str(model_dir)!r} has no model {model_file.name} (a run that "
+            "has not finished?)"
+        )
+    return PPO.load(model_file, device="cpu"), _load_norm(norm_file), name, entry
+
+
+def read_model_dir(model_dir: str | os.PathLike) -> tuple[str, dict, Path, Path]:
+    """What :func:`load_agent` reads, without loading the model: ``(name, entry, model
+    file, vecnormalize file)``; a zoo run folder needs only its ``<env id>/config.yml`` (its
+    checkpoints can be read before the run ends, :func:`load_checkpoint`)."""
     model_dir = Path(model_dir)
     if (model_dir / "model.zip").is_file():
         ((key, entry),) = load_config(model_dir / "config.yml").items()
         name = key if key != entry["env_id"] else model_dir.resolve().name
         model_file, norm_file = model_dir / "model.zip", model_dir / "vecnormalize.pkl"
     else:
-        runs = sorted(
-            p.parent
-            for p in model_dir.glob("*/config.yml")
-            if (model_dir / f"{p.parent.name}.zip").is_file()
-        )
+        runs = sorted(p.parent for p in model_dir.glob("*/config.yml"))
         if len(runs) != 1:
             raise ValueError(
                 f"model directory {str(model_dir)!r} has neither model.zip nor one zoo model "
@@ -750,13 +760,36 @@ def load_agent(model_dir: str | os.PathLike):
         model_file, norm_file = model_dir / f"{params.name}.zip", params / "vecnormalize.pkl"
     registered = gym.spec(entry["env_id"]).kwargs if entry["env_id"] in gym.registry else {}
     entry = {**entry, "env_kwargs": {**registered, **(entry.get("env_kwargs") or {})}}
-    model = PPO.load(model_file, device="cpu")
-    norm = None
-    if norm_file.is_file():
-        with open(norm_file, "rb") as f:
-            norm = pickle.load(f)
-        norm.training, norm.norm_reward = False, False
-    return model, norm, name, entry
+    return name, entry, model_file, norm_file
+
+
+def load_checkpoint(model_file: Path):
+    """A model file of a zoo run folder: ``(model, vecnormalize or None)``; a checkpoint
+    ``rl_model_<n>_steps.zip`` with the statistics saved beside it
+    (``rl_model_vecnormalize_<n>_steps.pkl``), the final ``<env id>.zip`` with
+    ``<env id>/vecnormalize.pkl``."""
+    from stable_baselines3 import PPO
+
+    name = model_file.name
+    if name.startswith("rl_model_"):
+        norm_file = model_file.with_name(name.replace("rl_model_", "rl_model_vecnormalize_"))
+        norm_file = norm_file.with_suffix(".pkl")
+    else:
+        norm_file = model_file.with_suffix("") / "vecnormalize.pkl"
+    return PPO.load(model_file, device="cpu"), _load_norm(norm_file)
+
+
+def _load_norm(path: Path):
+    """Saved ``VecNormalize`` statistics for inference (frozen, rewards left alone), or None
+    where the run did not normalize."""
+    import pickle
+
+    if not path.is_file():
+        return None
+    with open(path, "rb") as f:
+        norm = pickle.load(f)
+    norm.training, norm.norm_reward = False, False
+    return norm
 
 
 # ---------------------------------------------------------------------- command line
@@ -819,7 +852,7 @@ def parser() -> argparse.ArgumentParser:
         dest="env",
         default=ENV_ID,
         metavar="ID",
-        help=f"env id, a top-level key of --conf-file ({ENV_ID} or {RANDOM_SHAPES_ENV_ID})",
+        help=f"env id, a top-level key of --conf-file ({', '.join(SHIPPED)})",
     )
     p.add_argument(
         "-conf",

@@ -5,8 +5,12 @@
 * ``FrictionlessGraspRandomShapes-v0``: a new random convex polygon at every reset (default
   ranges) in fig13's hand set-up, the hand starting where the scene puts it, palm and
   fingers under control (five actions).
+* ``FrictionlessGraspLift-v0``: the same random shapes, the hand starting at the planner's
+  first pre-liftoff placement for each (``start="placement"``: palm pose and finger closing
+  fitted to the object, so that a grasp is within reach from the start), with the
+  observation's ``hand_features`` (fingertips, hand-object distances, contact positions).
 
-Both use the same class with the env's default reward weights; ``gymnasium.make`` keyword
+All use the same class with the env's default reward weights; ``gymnasium.make`` keyword
 arguments override the registered ones. :func:`register_envs` registers them with a string
 entry point, so registering imports neither the environment module nor pygame. Importing this
 package (which ``import grasp_env`` does) calls it: ``gymnasium.make("grasp_env:
@@ -25,12 +29,23 @@ ENTRY_POINT = "grasp_env.envs.frictionless_grasp:FrictionlessGraspEnv"
 MAX_EPISODE_STEPS = 200
 #: Id of the randomized-shapes set-up with palm control.
 RANDOM_SHAPES_ENV_ID = "FrictionlessGraspRandomShapes-v0"
+#: Id of the lifting task: random shapes from the planner's pre-liftoff placement.
+LIFT_ENV_ID = "FrictionlessGraspLift-v0"
 #: The registered ids and their ``gymnasium.make`` keyword arguments (read-only).
 ENV_KWARGS = MappingProxyType(
     {
         ENV_ID: MappingProxyType({}),
         RANDOM_SHAPES_ENV_ID: MappingProxyType(
             {"scene": "fig13", "shape_randomizer": True, "palm_control": True, "start": "scene"}
+        ),
+        LIFT_ENV_ID: MappingProxyType(
+            {
+                "scene": "fig13",
+                "shape_randomizer": True,
+                "palm_control": True,
+                "start": "placement",
+                "hand_features": True,
+            }
         ),
     }
 )
@@ -71,6 +86,7 @@ __all__ = [
     "ENTRY_POINT",
     "ENV_ID",
     "ENV_KWARGS",
+    "LIFT_ENV_ID",
     "MAX_EPISODE_STEPS",
     "RANDOM_SHAPES_ENV_ID",
     "REWARD_THRESHOLD",

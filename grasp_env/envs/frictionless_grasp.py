@@ -42,14 +42,16 @@ from grasp_env.envs.observation import (
     PALM_X_RANGE,
     PALM_Y_MAX,
     REACH,
+    contact_positions,
     in_palm_frame,
     observation_bounds,
 )
 from grasp_env.envs.shapes import hand_setup, random_shape_scene
 from grasp_env.errors import ComputationError
 from grasp_env.mechanics.closure import grip_objective, is_form_closure
-from grasp_env.planning.preliftoff import centred_placement
+from grasp_env.planning import centred_placement, first_placement
 from grasp_env.render import Renderer
+from grasp_env.sim.proximity import hand_features
 from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator
 
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
@@ -57,9 +59,13 @@ from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator
 RANDOM_PALM_XY, RANDOM_PALM_THETA, RANDOM_FINGER = 0.02, 0.05, 0.1
 RANDOM_START_TRIES = 50
 
-_STARTS = ("scene", "preliftoff", "random")
+_STARTS = ("scene", "preliftoff", "random", "placement")
+#: The pre-liftoff placement of each start that has one.
+_PLACEMENTS = {"preliftoff": centred_placement, "random": centred_placement,
+               "placement": lambda sim: first_placement(sim)[0]}  # fmt: skip
 _OPTION_KEYS = ("scene", "palm", "fingers")
-_REWARD_TERMS = ("form_closure", "grip", "lift", "drop", "ctrl")
+#: The reward's terms, in the order of ``info["reward_<term>"]``.
+REWARD_TERMS = ("form_closure", "hold", "grip", "lift", "drop", "ctrl")
 
 
 @dataclass(slots=True)
@@ -197,8 +203,8 @@ class FrictionlessGraspEnv(gym.Env):
 
     * Termination: a **drop** (the object lands back on the support after having left it in
       this episode, or its centre leaves the reach box ``|x|, |y| <= 2 w`` about the palm, in
-      the palm frame; ``info["dropped"]``), or a simulator failure (``info["sim_error"]``
-      holds the message; the state is left unchanged).
+      the palm frame; ``info["dropped"]``), or a failure of the simulator or of the
+      analysis' LPs (``info["sim_error"]`` holds the message; the state is left unchanged).
     * Truncation: only by the ``TimeLimit`` wrapper, ``max_episode_steps=200`` by default.
 
     ``info`` holds, at reset and every step: ``object_pose``, ``palm_pose``,
@@ -284,6 +290,7 @@ class FrictionlessGraspEnv(gym.Env):
         max_palm_step: tuple[float, float, float] = (0.02, 0.02, 0.05),
         start: str = "scene",
         reward_form_closure_weight: float = 10.0,
+        reward_hold_weight: float = 0.0,
         reward_grip_weight: float = 0.1,
         reward_lift_weight: float = 1.0,
         reward_drop_weight: float = 10.0,
@@ -292,22 +299,24 @@ class FrictionlessGraspEnv(gym.Env):
         contact_tol: float = 1e-9,
         max_vertices: int = 12,
         always_compute_grip: bool = False,
+        hand_features: bool = False,
         render_mode: str | None = None,
         render_width: int = 640,
         render_height: int = 480,
     ) -> None:
         self.palm_control = flag(palm_control, "palm_control")
         self.always_compute_grip = flag(always_compute_grip, "always_compute_grip")
+        self.hand_features = flag(hand_features, "hand_features")
         self.max_finger_step = number(max_finger_step, "max_finger_step", 0.0, math.pi / 2)
         self.max_palm_step = numbers(max_palm_step, "max_palm_step", 3, 0.0, 1.0)
         self.start = one_of(start, "start", _STARTS)
         weights = (
-            reward_form_closure_weight, reward_grip_weight, reward_lift_weight,
-            reward_drop_weight, reward_ctrl_weight,
+            reward_form_closure_weight, reward_hold_weight, reward_grip_weight,
+            reward_lift_weight, reward_drop_weight, reward_ctrl_weight,
         )  # fmt: skip
         self.reward_weights = {
             name: number(value, f"reward_{name}_weight", 0.0, math.inf, lo_open=False)
-            for name, value in zip(_REWARD_TERMS, weights, strict=True)
+            for name, value in zip(REWARD_TERMS, weights, strict=True)
         }
         self.gamma = number(gamma, "gamma", 0.0, 1.0)
         self.contact_tol = number(
@@ -332,9 +341,9 @@ class FrictionlessGraspEnv(gym.Env):
                 random_shape_scene(np.random.default_rng(0), base, self.shape_ranges)
 
         self._sims: dict[int, Simulator] = {}
-        self._preliftoff_cache: dict[int, State] = {}
+        self._placement_cache: dict[int, State] = {}
         self.action_space = spaces.Box(-1.0, 1.0, (5 if self.palm_control else 2,), np.float32)
-        low, high = observation_bounds(self.max_vertices)
+        low, high = observation_bounds(self.max_vertices, self.hand_features)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._obs_low, self._obs_high = low, high
 
@@ -506,23 +515,25 @@ class FrictionlessGraspEnv(gym.Env):
             return sim, sim.settle(scene.object.start_pose, self._check_hand(scene, opts)), None
         if self.start == "scene":
             return sim, sim.reset(), None
-        state, error = self._preliftoff(sim, key)
+        state, error = self._placement(sim, key)
         if self.start == "random":
             state = self._perturb(sim, state, rng)
         return sim, state, error
 
-    def _preliftoff(self, sim: Simulator, key: int | None) -> tuple[State, str | None]:
-        if key is not None and key in self._preliftoff_cache:
-            return self._preliftoff_cache[key], None
+    def _placement(self, sim: Simulator, key: int | None) -> tuple[State, str | None]:
+        """The start's pre-liftoff placement (cached per bundled scene), or the pre-liftoff
+        hand set-up with the error where the simulator failed on the way there."""
+        if key is not None and key in self._placement_cache:
+            return self._placement_cache[key], None
         scene = sim.scene
         error = None
         try:
-            state = centred_placement(sim)
+            state = _PLACEMENTS[self.start](sim)
         except ComputationError as exc:
             state = sim.settle(scene.object.start_pose, hand_setup(scene))
-            error = f"pre-liftoff closing stopped: {exc}"
+            error = f"pre-liftoff placement stopped: {exc}"
         if key is not None and error is None:
-            self._preliftoff_cache[key] = state
+            self._placement_cache[key] = state
         return state, error
 
     def _perturb(self, sim: Simulator, state: State, rng: np.random.Generator) -> State:
@@ -550,6 +561,8 @@ class FrictionlessGraspEnv(gym.Env):
         self._steps += 1
         try:
             new = self._simulate(state, a)  # finite, or a SimulationError
+            same = self._analysis if _same_contacts(new, state) else None
+            analysis = self._analyse(new, same)
         except ComputationError as exc:
             reward_info = dict.fromkeys(_REWARD_KEYS, 0.0)
             reward_info["reward_lift"] = -self._phi  # Phi = 0 at a terminal state
@@ -558,7 +571,6 @@ class FrictionlessGraspEnv(gym.Env):
             info["sim_error"] = f"{type(exc).__name__}: {exc}"
             return self._get_obs(), float(reward_info["reward_lift"]), True, False, info
 
-        analysis = self._analyse(new, self._analysis if _same_contacts(new, state) else None)
         dropped = (analysis.on_support and self._left_support) or analysis.out_of_reach
         self._left_support |= not analysis.on_support
         self._state, self._analysis = new, analysis
@@ -650,6 +662,7 @@ class FrictionlessGraspEnv(gym.Env):
         bonus = 0.0
         if an.success and not self._success_rewarded:
             bonus, self._success_rewarded = weights["form_closure"], True
+        hold = weights["hold"] if an.success else 0.0
         grip = 0.0
         if an.success and math.isfinite(an.grip):
             y = min(an.grip / state.scene.object_weight, GRIP_MAX)
@@ -662,7 +675,7 @@ class FrictionlessGraspEnv(gym.Env):
         for x in a:
             effort += x * x
         ctrl = -weights["ctrl"] * effort
-        terms = map(float, (bonus, grip, lift, drop, ctrl))
+        terms = map(float, (bonus, hold, grip, lift, drop, ctrl))
         reward_info = dict(zip(_REWARD_KEYS, terms, strict=True))
         return float(sum(reward_info.values())), reward_info
 
@@ -693,10 +706,20 @@ class FrictionlessGraspEnv(gym.Env):
                 grip if math.isfinite(grip) else GRIP_MAX,
                 (y_o - self._y0) / w,
             )
-            obs[self._contacts_at :] = an.contact_obs = contacts
-        elif self._obs_contacts is not an.contact_obs:
-            obs[self._contacts_at :] = an.contact_obs
+            if self.hand_features:
+                contacts += contact_positions(state)
+            an.contact_obs = contacts
+        if self._obs_contacts is not an.contact_obs:
+            obs[self._contacts_at : self._contacts_at + len(an.contact_obs)] = an.contact_obs
         self._obs_contacts = an.contact_obs
+        if self.hand_features:
+            model = self._sim.model
+            features = hand_features(
+                model.points, model.body, model.n_object, model.n_vertices, model.half,
+                state.object_pose, state.hand,
+            )  # fmt: skip
+            features /= w
+            obs[self._hand_at :] = features
         clipped = np.maximum(obs, self._obs_low)
         return np.minimum(clipped, self._obs_high, out=clipped)
 
@@ -710,6 +733,7 @@ class FrictionlessGraspEnv(gym.Env):
         obs[13 : 13 + 2 * len(v)] = v.ravel()
         obs[13 + 2 * n : 13 + 2 * n + len(v)] = 1.0
         self._contacts_at = 13 + 3 * n
+        self._hand_at = 27 + 3 * n
 
     def _info(self, state: State, dropped: bool, reward_info: dict) -> dict[str, Any]:
         an = self._analysis
@@ -770,7 +794,7 @@ class FrictionlessGraspEnv(gym.Env):
         return d
 
 
-_REWARD_KEYS = tuple(f"reward_{k}" for k in _REWARD_TERMS)
+_REWARD_KEYS = tuple(f"reward_{k}" for k in REWARD_TERMS)
 
 
 # ---------------------------------------------------------------------- helpers
@@ -786,4 +810,4 @@ def _same_contacts(new: State, old: State) -> bool:
     )
 
 
-__all__ = ["FrictionlessGraspEnv"]
+__all__ = ["REWARD_TERMS", "FrictionlessGraspEnv"]

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
 
 # Workspace and observation ranges, in palm widths (lengths) and radians, about the object's
@@ -23,6 +24,9 @@ COUNT_MAX = 8.0  #: contacts per body
 FORCE_MAX = 10.0  #: total contact force on a body, in object weights
 GRIP_MAX = 10.0  #: y* in object weights (``y_max``)
 HEIGHT_MIN, HEIGHT_MAX = -1.0, OBJECT_Y_MAX  #: object centre height above its start
+TIP_RANGE = 2.0  #: fingertip coordinates in the palm frame (``hand_features``)
+DISTANCE_MAX = 2.0  #: hand-object distances (``hand_features``)
+HAND_BODIES = ("palm", "finger1", "finger2")
 
 BODIES = geo.BODY_NAMES
 #: Each body's first entry in the observation's contact block (count, then force).
@@ -38,7 +42,30 @@ def in_palm_frame(state: State) -> tuple[float, float, float]:
     return (c * dx + s * dy, -s * dx + c * dy, th_o - th_p)
 
 
-def observation_bounds(n: int) -> tuple[np.ndarray, np.ndarray]:
+def contact_positions(state: State) -> tuple[float, float, float]:
+    """Where the object touches each hand body (palm, finger 1, finger 2): the mean x of its
+    contact points in the body's frame over the body's length (palm: from the palm's centre,
+    in palm widths, in [-0.5, 0.5]; finger: from the joint, in finger lengths, in [0, 1]); 0
+    where the body has no contact."""
+    scene = state.scene
+    poses = kin.body_poses_W(scene, state.hand)
+    lengths = (scene.palm.width, scene.fingers[0].length, scene.fingers[1].length)
+    sums, counts = [0.0, 0.0, 0.0], [0, 0, 0]
+    for c in state.contacts:
+        if c.body == "support":
+            continue
+        k = HAND_BODIES.index(c.body)
+        x, y, phi = poses[k]
+        sums[k] += (math.cos(phi) * (c.point[0] - x) + math.sin(phi) * (c.point[1] - y)) / lengths[
+            k
+        ]
+        counts[k] += 1
+    return tuple(total / n if n else 0.0 for total, n in zip(sums, counts, strict=True))
+
+
+def observation_bounds(n: int, hand_features: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of the observation with ``n`` padded vertices (and the
+    ``hand_features`` block)."""
     pi = math.pi
     low = [-PALM_X_RANGE, 0.0, -PALM_THETA_MAX, -pi, -pi]
     high = [PALM_X_RANGE, PALM_Y_MAX, PALM_THETA_MAX, pi, pi]
@@ -50,4 +77,7 @@ def observation_bounds(n: int) -> tuple[np.ndarray, np.ndarray]:
     high += [COUNT_MAX, FORCE_MAX] * len(BODIES)
     low += [0.0, 0.0, HEIGHT_MIN]
     high += [1.0, GRIP_MAX, HEIGHT_MAX]
+    if hand_features:
+        low += [-1.0] * len(HAND_BODIES) + [-TIP_RANGE] * 4 + [0.0] * 5
+        high += [1.0] * len(HAND_BODIES) + [TIP_RANGE] * 4 + [DISTANCE_MAX] * 5
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)

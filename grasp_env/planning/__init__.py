@@ -17,7 +17,7 @@ does.
 """
 
 from grasp_env.planning.approach import approach_path
-from grasp_env.planning.grasp import EXPLORE_MOVES, explore, plan_grasp
+from grasp_env.planning.grasp import EXPLORE_MOVES, explore, first_placement, plan_grasp
 from grasp_env.planning.grip import FourContactBranch, adjust_grip, grip_curves
 from grasp_env.planning.lifting import lift
 from grasp_env.planning.plan import (
@@ -58,6 +58,7 @@ __all__ = [
     "close_until_touch",
     "explore",
     "finger_gap",
+    "first_placement",
     "grasped",
     "grip_curves",
     "lift",

@@ -84,6 +84,15 @@ def _placements(sim: Simulator, centred: State):
             yield centred, "centred"
 
 
+def first_placement(sim: Simulator) -> tuple[State, str]:
+    """The first pre-liftoff placement :func:`plan_grasp` tries, and its name: a hand set-up
+    fitted to the object (palm pose and finger closing) from which squeezing tips it toward
+    the palm, or the centred placement where the object has none. What a policy starting
+    there still has to do is lift and hold the object."""
+    centred = centred_placement(sim)
+    return next(_placements(sim, centred), (centred, "centred"))
+
+
 def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: int) -> None:
     left, right = tippability_regions(sim.scene)
     if left.is_empty and right.is_empty:

@@ -101,14 +101,18 @@ def solve(
         return status, np.zeros(n), np.nan
     if -T[m, -1] > tol * max(size, 1.0):
         return INFEASIBLE, np.zeros(n), np.inf
-    # artificials left in the basis at zero: swap each for a real column where the row has one
+    # artificials left in the basis at zero: swap each for the real column with the row's
+    # largest entry (a tiny pivot would scale the rounding of every other row up); a row
+    # with none above tol is redundant
     for i in range(m):
         if basis[i] >= n_real:
+            best, col = tol, -1
             for j in range(n_real):
-                if abs(T[i, j]) > tol:
-                    _pivot(T, i, j)
-                    basis[i] = j
-                    break
+                if abs(T[i, j]) > best:
+                    best, col = abs(T[i, j]), j
+            if col >= 0:
+                _pivot(T, i, col)
+                basis[i] = col
     # phase two: the real objective, reduced over the current basis
     T[m] = 0.0
     T[m, :n] = c

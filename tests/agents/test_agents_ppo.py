@@ -7,6 +7,7 @@ import os
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
+import csv
 import json
 import math
 import subprocess
@@ -22,7 +23,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents import evaluate as ev
 from agents import train_ppo as tp
-from grasp_env.envs import ENV_ID, ENV_KWARGS, RANDOM_SHAPES_ENV_ID
+from grasp_env.envs import ENV_ID, ENV_KWARGS, LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIG = REPO / "configs" / "ppo.yml"
@@ -49,13 +50,14 @@ def test_config_entry_builds_its_env(name):
 
 def test_config_is_keyed_by_the_registered_ids():
     raw = yaml.safe_load(CONFIG.read_text())
-    assert set(raw) == {ENV_ID, RANDOM_SHAPES_ENV_ID} == set(ENV_KWARGS)
+    assert set(raw) == {ENV_ID, RANDOM_SHAPES_ENV_ID, LIFT_ENV_ID} == set(ENV_KWARGS)
     assert all("env_id" not in entry for entry in raw.values())  # the zoo's format
     config = tp.load_config(CONFIG)
     assert {key: entry["env_id"] for key, entry in config.items()} == {k: k for k in raw}
     # The ids fix the task; the entries only re-weight the reward for training.
     for entry in config.values():
-        assert set(entry["env_kwargs"]) == {"reward_grip_weight"}
+        assert all(key.startswith("reward_") for key in entry["env_kwargs"])
+    assert set(config[ENV_ID]["env_kwargs"]) == {"reward_grip_weight"}
     ((wrapper, kwargs),) = tp.wrapper_specs(config[RANDOM_SHAPES_ENV_ID])
     assert wrapper is tp.ApproachShaping and kwargs["touch"] == 0.2
     assert not tp.wrapper_specs(config[ENV_ID])
@@ -71,7 +73,7 @@ def test_shipped_models_keep_their_set_up():
         assert entry["env_kwargs"] == {**ENV_KWARGS[env_id], "reward_grip_weight": 1.0}
     spec = ev.ppo_spec(tp.MODEL_DIR / "random_shapes_palm")
     assert spec.name == "ppo_random_shapes_palm"
-    assert spec.env_kwargs == {"palm_control": True, "start": "scene"}
+    assert spec.env_kwargs == {"palm_control": True}  # the suites set the start
     assert ev.ppo_spec(tp.MODEL_DIR / "fig13_fingers").env_kwargs == {}
 
 
@@ -338,6 +340,26 @@ def test_policies_meet_the_same_perturbed_fig13_starts():
     assert np.abs(hands["random"][0] - hands["random"][1]).max() > 1e-6
 
 
+def test_policies_meet_the_same_lift_starts():
+    """The lifting suite starts every policy at the same placement of the same shape, whatever
+    its own set-up (the scripted policy's palm control, the random policy's fingers only, a
+    lifting model's hand features)."""
+    hands = {}
+    set_ups = {
+        "scripted": ev.SCRIPTED_KWARGS,
+        "random": ev.RANDOM_KWARGS,
+        "ppo": {"palm_control": True, "hand_features": True, "start": "scene"},
+    }
+    for kind, kwargs in set_ups.items():
+        env = ev.make_env(ev.PolicySpec(kind, kind, kwargs), ev.LIFT_KWARGS, 4)
+        env.reset(seed=ev.HELDOUT_SEED)
+        hands[kind] = (env.unwrapped.state.hand.copy(), env.unwrapped.state.object_pose.copy())
+        env.close()
+    for kind in ("random", "ppo"):
+        np.testing.assert_array_equal(hands[kind][0], hands["scripted"][0])
+        np.testing.assert_array_equal(hands[kind][1], hands["scripted"][1])
+
+
 def test_wide_suite_draws_from_the_wide_ranges():
     # Over 40 held-out seeds the wide suite's shapes use vertex counts beyond the default 8
     # and stay within 3-12; the default suite's never exceed 8.
@@ -388,3 +410,22 @@ def test_approach_shaping_is_potential_based():
         rest = sum(new_info[f"reward_{t}"] for t in tp.REWARD_TERMS)
         assert reward == pytest.approx(rest + expected, abs=1e-9)
         obs, info = new, new_info
+
+
+def test_learning_curves_of_a_run(trained, tmp_path, capsys):
+    """The tiny run's checkpoints (every 128 steps) played on validation shapes, and its
+    training episodes binned; a folder without checkpoints is refused by name."""
+    from agents import learning_curves as lc
+
+    (run,) = (trained.parent / "runs" / "ppo").glob(f"{ENV_ID}_*")
+    assert [s for s, _ in lc.checkpoints(run, 128)] == [128, 256]
+    lc.main([str(run), "--shapes", "2", "--every", "128", "--bin", "100", "--out", str(tmp_path)])
+    rows = list(csv.DictReader(open(tmp_path / "learning_curves.csv")))
+    assert [int(r["steps"]) for r in rows] == [128, 256]
+    assert all(float(r["success_rate"]) in (0.0, 0.5, 1.0) for r in rows)
+    assert (tmp_path / "learning_curves.png").stat().st_size > 0
+    training = lc.training_success(run, 100)
+    assert [edge for edge, _ in training] == [100, 200][: len(training)]
+    with pytest.raises(SystemExit):
+        lc.main([str(tmp_path), "--out", str(tmp_path / "x")])
+    assert "not a run folder with checkpoints" in capsys.readouterr().err

@@ -15,6 +15,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 
 pytest.importorskip("rl_zoo3")
 
@@ -36,15 +37,16 @@ def test_zoo_reads_the_entry_of_each_id(env_id, tmp_path):
     hyperparams, saved = manager.read_hyperparameters()
     assert saved["policy"] == "MlpPolicy"
     kwargs, wrapper, callbacks, _ = manager._preprocess_hyperparams(hyperparams)
-    assert manager.n_envs == 2 and manager.n_timesteps == 150_000 and manager.normalize
+    raw = yaml.safe_load(CONFIG.read_text())[env_id]
+    assert manager.n_envs == 2 and manager.n_timesteps == raw["n_timesteps"] and manager.normalize
     assert manager.monitor_kwargs == {"info_keywords": ("is_success",)}
-    assert manager.env_kwargs == {"reward_grip_weight": 1.0}
+    assert manager.env_kwargs == raw["env_kwargs"]
     assert [type(c).__name__ for c in callbacks] == ["RewardTermsCallback"]
     assert callable(kwargs["learning_rate"]) and isinstance(kwargs["policy_kwargs"], dict)
     env = gym.make(env_id, **manager.env_kwargs)
     if wrapper is not None:
         env = wrapper(env)
-    assert isinstance(env, tp.ApproachShaping) == (env_id != "FrictionlessGrasp-v0")
+    assert isinstance(env, tp.ApproachShaping) == (env_id == "FrictionlessGraspRandomShapes-v0")
     env.close()
 
 

@@ -27,7 +27,10 @@ from grasp_env.planning import close_until_touch
 
 PALM_CONTROL = [False, True]
 PALM_IDS = ["fingers-only", "palm-control"]
-REWARD_KEYS = ["reward_form_closure", "reward_grip", "reward_lift", "reward_drop", "reward_ctrl"]
+REWARD_KEYS = [
+    "reward_form_closure", "reward_hold", "reward_grip", "reward_lift", "reward_drop",
+    "reward_ctrl",
+]  # fmt: skip
 #: The info keys that docs/conventions.md ("The environment") guarantees at reset and step.
 DOCUMENTED_INFO_KEYS = {
     "object_pose",
@@ -95,6 +98,13 @@ REGISTERED = {
         "palm_control": True,
         "start": "scene",
     },
+    "FrictionlessGraspLift-v0": {
+        "scene": "fig13",
+        "shape_randomizer": True,
+        "palm_control": True,
+        "start": "placement",
+        "hand_features": True,
+    },
 }
 
 
@@ -123,7 +133,9 @@ def test_registered_ids_share_entry_point_wrappers_and_threshold(env_id):
     palm = REGISTERED[env_id].get("palm_control", False)
     assert unwrapped.action_space.shape == ((5,) if palm else (2,))
     assert (unwrapped.shape_ranges is not None) == ("shape_randomizer" in REGISTERED[env_id])
-    assert unwrapped.scenes[0].name == "fig13" and unwrapped.start == "scene"
+    assert unwrapped.scenes[0].name == "fig13"
+    assert unwrapped.start == REGISTERED[env_id].get("start", "scene")
+    assert unwrapped.hand_features == REGISTERED[env_id].get("hand_features", False)
     env.close()
 
 
@@ -725,6 +737,122 @@ def test_simulation_error_terminates_with_state_unchanged(monkeypatch):
     assert terminated and not truncated and "fall did not come to rest" in info2["sim_error"]
     assert np.array_equal(obs, obs2) and np.array_equal(info["object_pose"], info2["object_pose"])
     assert reward == 0.0 and not info2["dropped"]
+
+
+def test_analysis_error_terminates_with_state_unchanged(monkeypatch):
+    """A failure of the analysis' LPs ends the episode like a simulator failure; the env
+    resets and goes on afterwards."""
+    env = FrictionlessGraspEnv(start="preliftoff")
+    obs, info = env.reset(seed=0)
+    y0 = info["object_pose"][1]
+
+    def fail(*args, **kwargs):
+        raise grasp_env.SolverError("closure LP: numerical trouble", status="inconsistent")
+
+    monkeypatch.setattr(fg_module, "is_form_closure", fail)
+    for _ in range(40):  # closing makes four contacts: the closure LP runs
+        before = env.state
+        new_obs, reward, terminated, _, info = env.step(np.ones(2))
+        if terminated:
+            break
+        obs = new_obs
+    assert terminated and "numerical trouble" in info["sim_error"]
+    assert env.state is before and np.array_equal(new_obs, obs)
+    # the lift shaping's terminal step: Phi = 0 there
+    assert reward == info["reward_lift"] == pytest.approx(-(before.object_pose[1] - y0))
+    monkeypatch.undo()
+    env.reset(seed=0)
+    assert env.step(np.ones(2))[2] is False
+
+
+def test_hold_reward_is_paid_every_step_the_grasp_holds():
+    env = FrictionlessGraspEnv(start="preliftoff", reward_hold_weight=0.5)
+    env.reset(seed=0)
+    held = 0
+    for _ in range(60):
+        _, reward, terminated, _, info = env.step(np.ones(2) * (held < 3))
+        assert info["reward_hold"] == (0.5 if info["is_success"] else 0.0)
+        assert reward == pytest.approx(sum(info[k] for k in REWARD_KEYS))
+        held += info["is_success"]
+        assert not terminated
+    assert held > 10
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_placement_start_is_the_planners_first_placement(seed):
+    """``start="placement"``: the hand where the planner's pre-liftoff phase first puts it,
+    in a valid state (no penetration, contacts as independent geometry finds them)."""
+    from grasp_env.testing import check_state
+
+    env = FrictionlessGraspEnv(shape_randomizer=True, palm_control=True, start="placement")
+    env.reset(seed=1_000_000 + seed)
+    state = env.state
+    expected, _ = grasp_env.planning.first_placement(grasp_env.Simulator(env.scene))
+    assert np.array_equal(state.hand, expected.hand)
+    assert np.array_equal(state.object_pose, expected.object_pose)
+    chk = check_state(state.scene, state.object_pose, state.hand, state.contacts, env.simulator.tol)
+    assert not chk.violations, chk
+    assert {"finger1", "finger2"} & {c.body for c in state.contacts}
+
+
+def _contact_positions(scene, h, contacts) -> list[float]:
+    """Mean position of each hand body's contacts along it, from the conventions' frames:
+    palm x from its centre over the width, finger distance from its joint over its length."""
+    w = scene.palm.width
+    c, s = math.cos(h[2]), math.sin(h[2])
+    out = []
+    for k, body in enumerate(("palm", "finger1", "finger2")):
+        if k == 0:
+            origin, angle, length = h[:2], h[2], w
+        else:
+            side = -0.5 if k == 1 else 0.5
+            origin = h[:2] + side * w * np.array([c, s])
+            angle, length = h[2] + h[2 + k], scene.fingers[k - 1].length
+        u = np.array([math.cos(angle), math.sin(angle)])
+        xs = [float((ct["point"] - origin) @ u) / length for ct in contacts if ct["body"] == body]
+        out.append(sum(xs) / len(xs) if xs else 0.0)
+    return out
+
+
+def test_hand_features_follow_each_step():
+    """The ``hand_features`` block: contact positions recomputed from the step's info, and
+    :func:`grasp_env.sim.proximity.hand_features` (tested against independent geometry) in
+    palm widths; the rest of the observation as without it."""
+    from grasp_env.sim import proximity
+
+    env = FrictionlessGraspEnv(shape_randomizer=True, palm_control=True, start="placement",
+                               hand_features=True)  # fmt: skip
+    plain = FrictionlessGraspEnv(shape_randomizer=True, palm_control=True, start="placement")
+    n = env.max_vertices
+    assert env.observation_space.shape == (27 + 3 * n + proximity.N_FEATURES,)
+    low, high = observation_bounds(n, hand_features=True)
+    assert np.array_equal(env.observation_space.low, low)
+    rng = np.random.default_rng(2)
+    obs, info = env.reset(seed=7)
+    base, _ = plain.reset(seed=7)
+    touched = 0
+    for _ in range(120):
+        action = rng.uniform(-1, 1, 5).astype(np.float32)
+        obs, _, terminated, truncated, info = env.step(action)
+        base, *_ = plain.step(action)
+        assert np.array_equal(obs[: len(base)], base)
+        scene, h = env.scene, np.concatenate([info["palm_pose"], info["finger_angles"]])
+        expected = _contact_positions(scene, h, info["contacts"])
+        m = env.simulator.model
+        features = proximity.hand_features(
+            m.points, m.body, m.n_object, m.n_vertices, m.half, info["object_pose"], h
+        )
+        expected += list(features / scene.palm.width)
+        np.testing.assert_allclose(
+            obs[len(base) :], np.clip(expected, low[len(base) :], high[len(base) :]),
+            rtol=1e-6, atol=1e-6,
+        )  # fmt: skip
+        touched += any(x != 0.0 for x in expected[1:3])
+        if terminated or truncated:
+            obs, info = env.reset()
+            base, _ = plain.reset(seed=None)
+            break
+    assert touched > 5
 
 
 def test_always_compute_grip_reports_y_star_outside_closure():

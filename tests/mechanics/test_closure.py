@@ -708,14 +708,81 @@ def test_analysis_is_unit_free(k, m):
         assert grasp_env.is_form_closure(other) == grasp_env.is_form_closure(state), f"case {i}"
 
 
-def test_grip_objective_below_its_bound_is_a_solver_error(monkeypatch):
-    """An LP optimum below the independent lower bound ``W`` is a solver failure, not a grip."""
+def test_grip_objective_rejected_fast_answer_goes_to_highs(monkeypatch):
+    """A fast LP answer below the independent lower bound ``W`` (or off its constraints) is
+    not a grip: HiGHS decides instead, and agrees with the null-space form."""
     state, _ = _parallel_faces_grip(SCENE, (-1.0, 1.0))
-    n = len(state.contacts)
-    fake = (mech.simplex.OPTIMAL, np.full(n, 0.5 / n), 0.5)
+    p, n, bodies = (
+        np.array([getattr(c, k) for c in state.contacts]) for k in ("point", "normal", "body")
+    )
+    ref, _ = nullspace_grip(state.scene, state.object_pose, state.hand, p, n, list(bodies))
+    k = len(state.contacts)
+    fake = (mech.simplex.OPTIMAL, np.full(k, 0.5 / k), 0.5)
     monkeypatch.setattr(mech.simplex, "solve", lambda *a, **kw: fake)
+    assert grasp_env.grip_objective(state) == pytest.approx(ref, rel=1e-7)
+
+
+def test_grip_objective_below_its_bound_on_both_solvers_is_a_solver_error(monkeypatch):
+    """An optimum below the independent lower bound from the reference solver too is a
+    solver failure, not a grip."""
+    state, _ = _parallel_faces_grip(SCENE, (-1.0, 1.0))
+    k = len(state.contacts)
+    fake = (mech.simplex.OPTIMAL, np.full(k, 0.5 / k), 0.5)
+    monkeypatch.setattr(mech.simplex, "solve", lambda *a, **kw: fake)
+    monkeypatch.setattr(
+        mech.lp, "solve", lambda *a, **kw: lp.LPResult("optimal", np.full(k, 0.5 / k), 0.5)
+    )
     with pytest.raises(SolverError, match="lower bound"):
         grasp_env.grip_objective(state)
+
+
+#: A state met in training (random octagon on the support in fig13's hand set-up): one object
+#: vertex sits in the corner between the palm and finger 1, so four contacts (palm and finger
+#: edges, palm and finger vertices on the object's edges) share one point with four normals.
+#: The fast tableau pivoted on a rounding-sized entry there (optimum 0.99998 W, below W).
+CORNER_VERTICES = [
+    [-0.07972363957424204, 0.0], [0.04095417303250993, 0.0],
+    [0.1015715437402454, 0.044279757353578496], [0.14166158505456192, 0.13483451634360974],
+    [0.12036951040380676, 0.19424843469450984], [0.05802451818791534, 0.22203831154362458],
+    [-0.07720350766662967, 0.16258120963109016], [-0.1142278077583163, 0.0937474286409174],
+]  # fmt: skip
+CORNER_MASS = 0.31071376361774533
+CORNER_POSE = [-0.5784367989913186, 0.09931916173673852, -0.6308906067676943]
+CORNER_HAND = [
+    -0.1193375417789775, 0.168784828030303, -0.06443835496343049, -2.818101711506262,
+    -2.958773283662811,
+]  # fmt: skip
+CORNER_CONTACTS = [
+    ("support", [-0.618788031944906, 0.0], [0.0, 1.0]),
+    ("support", [-0.5437203122325635, 0.0], [0.0, 1.0]),
+    ("palm", [-0.6182998250305305, 0.20098171281814936],
+     [-0.06439376964038979, -0.9979245675057311]),
+    ("finger1", [-0.6182998250305305, 0.20098171281814936],
+     [0.25616486634022545, -0.9666331058125903]),
+    ("palm", [-0.618299825531843, 0.2009817128504979],
+     [-0.21496070173795861, -0.9766226992591993]),
+    ("finger1", [-0.618299825531843, 0.2009817128504979],
+     [0.43173504377727784, -0.902000472269628]),
+]  # fmt: skip
+
+
+def test_grip_objective_with_contacts_sharing_a_corner():
+    """Near-degenerate contacts (four at one point): the same y* as the null-space form."""
+    from grasp_env.envs.shapes import hand_setup, scene_to_dict
+
+    d = scene_to_dict(grasp_env.load_scene("fig13"))
+    v = np.array(CORNER_VERTICES)
+    d["object"] = {"vertices": v.tolist(), "mass": CORNER_MASS}
+    h0 = hand_setup(grasp_env.load_scene("fig13"), v)
+    d["palm"]["pose"] = h0[:3].tolist()
+    d["fingers"][0]["angle"], d["fingers"][1]["angle"] = h0[3:].tolist()
+    scene = grasp_env.load_scene(d)
+    bodies, p, n = zip(*CORNER_CONTACTS, strict=True)
+    p, n = np.array(p), np.array(n)
+    state = make_state(CORNER_POSE, CORNER_HAND, p, n, bodies, scene=scene)
+    ref, _ = nullspace_grip(scene, CORNER_POSE, np.array(CORNER_HAND), p, n, list(bodies))
+    assert math.isfinite(ref)
+    assert grasp_env.grip_objective(state) == pytest.approx(ref, rel=1e-7)
 
 
 def _finger_case(q1, q2, thp=0.0):

@@ -1,0 +1,206 @@
+"""Learning curves of PPO runs: success and ``y*`` against env steps, mean and spread over
+seeds.
+
+    python -m agents.learning_curves RUN [RUN ...] [--shapes 20] [--every 250000]
+        [--workers 2] [--out runs/learning_curves]
+
+Each ``RUN`` is a zoo run folder of ``agents.train_ppo`` (``<log folder>/ppo/<env id>_<n>``,
+one per seed, all of one env id). Two curves per run:
+
+* **training**: the share of the Monitor's episodes (every training env) that ended in
+  success, in bins of ``--bin`` env steps: what the exploring policy achieved;
+* **checkpoints**: each checkpoint the run saved (``rl_model_<steps>_steps.zip`` with its
+  ``VecNormalize`` statistics) at a multiple of ``--every`` steps, and the final model, played
+  deterministically on ``--shapes`` validation episodes of the run's env id (seeds
+  ``VALIDATION_SEED + k``: neither the training seeds nor the held-out ones of
+  ``agents.evaluate``): success rate and mean ``y* / W`` over the successes.
+
+Writes ``learning_curves.png`` (two panels: success, ``y*/W``; the mean over seeds with the
+band from the lowest to the highest seed) and ``learning_curves.csv`` (one row per run and
+checkpoint) into ``--out``. See ``docs/training.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import re
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+import gymnasium as gym
+import numpy as np
+
+import grasp_env  # noqa: F401  (registers the env ids)
+from agents.train_ppo import load_checkpoint, read_model_dir
+from grasp_env.cli import HelpFormatter, positive_int
+
+#: First seed of the validation episodes: apart from training (small seeds) and from the
+#: held-out suites of ``agents.evaluate`` (1,000,000 on).
+VALIDATION_SEED = 2_000_000
+_CHECKPOINT = re.compile(r"rl_model_(\d+)_steps\.zip")
+
+
+def checkpoints(run: Path, every: int) -> list[tuple[int, Path]]:
+    """``(steps, model file)`` of the run's checkpoints at multiples of ``every`` steps, and
+    of its final model (at the steps its ``train_stats.json`` records)."""
+    found = []
+    for path in run.glob("rl_model_*_steps.zip"):
+        steps = int(_CHECKPOINT.fullmatch(path.name).group(1))
+        if steps % every == 0:
+            found.append((steps, path))
+    stats = run / "train_stats.json"
+    if stats.is_file():
+        steps = int(json.loads(stats.read_text())["timesteps"])
+        final = next(run.glob("*-v*.zip"), None)
+        if final is not None and all(s != steps for s, _ in found):
+            found.append((steps, final))
+    return sorted(found)
+
+
+def training_success(run: Path, bin_steps: int) -> list[tuple[int, float]]:
+    """``(bin end, success share)`` of the Monitor's training episodes, in bins of
+    ``bin_steps`` env steps (the episodes of every env, in the order they ended)."""
+    episodes = []
+    for path in run.glob("*.monitor.csv"):
+        with open(path) as f:
+            next(f)  # the Monitor's JSON header
+            for row in csv.DictReader(f):
+                episodes.append((float(row["t"]), int(row["l"]), row["is_success"] == "True"))
+    episodes.sort()
+    out, steps, done, won, edge = [], 0, 0, 0, bin_steps
+    for _, length, success in episodes:
+        steps += length
+        done, won = done + 1, won + success
+        if steps >= edge:
+            out.append((edge, won / done))
+            done, won, edge = 0, 0, edge + bin_steps
+    return out
+
+
+def play(job: tuple) -> tuple[int, int, list[float]]:
+    """One checkpoint on the validation episodes: ``(steps, successes, y*/W of each)``."""
+    run, steps, model_file, shapes = job
+    model, norm = load_checkpoint(Path(model_file))
+    _, entry, _, _ = read_model_dir(run)
+    kwargs = {k: v for k, v in entry["env_kwargs"].items() if not k.startswith("reward_")}
+    env = gym.make(entry["env_id"], **kwargs)
+    won, grips = 0, []
+    for k in range(shapes):
+        obs, _ = env.reset(seed=VALIDATION_SEED + k)
+        while True:
+            x = norm.normalize_obs(obs) if norm is not None else obs
+            obs, _, terminated, truncated, info = env.step(model.predict(x, deterministic=True)[0])
+            if terminated or truncated:
+                break
+        if info["is_success"]:
+            won += 1
+            grips.append(info["grip_force"] / env.unwrapped.scene.object_weight)
+    env.close()
+    return steps, won, grips
+
+
+def curves(runs: list[Path], shapes: int, every: int, workers: int) -> list[dict]:
+    """One row per run and checkpoint: steps, success rate, mean y*/W (NaN without one)."""
+    jobs = [
+        (str(run), steps, str(path), shapes)
+        for run in runs
+        for steps, path in checkpoints(run, every)
+    ]
+    if workers > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            results = list(pool.map(play, jobs, chunksize=1))
+    else:
+        results = [play(job) for job in jobs]
+    rows = []
+    for (run, _, _, _), (steps, won, grips) in zip(jobs, results, strict=True):
+        rows.append(
+            {
+                "run": Path(run).name,
+                "steps": steps,
+                "success_rate": won / shapes,
+                "grip_W_mean": float(np.mean(grips)) if grips else math.nan,
+            }
+        )
+    return rows
+
+
+def plot(path: Path, rows: list[dict], training: dict[str, list], title: str) -> None:
+    """The two panels: success (training episodes thin, checkpoints with the seed band) and
+    y*/W at the checkpoints."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for name, points in training.items():
+        if points:
+            x, y = zip(*points, strict=True)
+            axes[0].plot(x, y, lw=0.8, alpha=0.5, label=f"training episodes, {name}")
+    for ax, key in zip(axes, ("success_rate", "grip_W_mean"), strict=True):
+        steps = sorted({r["steps"] for r in rows})
+        by_step = [[r[key] for r in rows if r["steps"] == s] for s in steps]
+        mean = [np.nanmean(v) if np.isfinite(v).any() else math.nan for v in by_step]
+        lo = [np.nanmin(v) if np.isfinite(v).any() else math.nan for v in by_step]
+        hi = [np.nanmax(v) if np.isfinite(v).any() else math.nan for v in by_step]
+        ax.plot(steps, mean, "k-o", ms=3, label="checkpoints: mean over seeds")
+        ax.fill_between(steps, lo, hi, color="k", alpha=0.15, label="lowest to highest seed")
+        ax.set_xlabel("env steps")
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(6, 6))
+    axes[0].set_ylabel("success rate")
+    axes[0].set_ylim(0, 1.02)
+    axes[1].set_ylabel("y* / W over successes (lower is better)")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.learning_curves",
+        description="Success and y* against env steps for PPO runs (one per seed) of one env "
+        "id: the training episodes' success, and each checkpoint played deterministically on "
+        "validation shapes. Writes learning_curves.png and learning_curves.csv into --out.",
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("runs", nargs="+", help="zoo run folders (<log folder>/ppo/<id>_<n>)")
+    parser.add_argument("--shapes", type=positive_int, default=20, help="validation episodes")
+    parser.add_argument("--every", type=positive_int, default=250_000, help="checkpoint spacing")
+    parser.add_argument("--bin", type=positive_int, default=50_000, help="training-curve bin")
+    parser.add_argument("--workers", type=positive_int, default=1, help="processes")
+    parser.add_argument("--out", default="runs/learning_curves", help="output directory")
+    args = parser.parse_args(argv)
+    runs = [Path(r) for r in args.runs]
+    for run in runs:
+        if not run.is_dir() or not any(run.glob("rl_model_*_steps.zip")):
+            parser.error(f"{str(run)!r} is not a run folder with checkpoints")
+    env_ids = {read_model_dir(run)[1]["env_id"] for run in runs}
+    if len(env_ids) != 1:
+        parser.error(f"the runs trained on different env ids: {sorted(env_ids)}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = curves(runs, args.shapes, args.every, args.workers)
+    with open(out / "learning_curves.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    training = {run.name: training_success(run, args.bin) for run in runs}
+    title = f"{env_ids.pop()}: {len(runs)} seeds, {args.shapes} validation episodes a checkpoint"
+    plot(out / "learning_curves.png", rows, training, title)
+    for r in rows:
+        print(f"{r['run']} {r['steps']:>9,d} steps: success {r['success_rate']:.2f}, "
+              f"y*/W {r['grip_W_mean']:.2f}")  # fmt: skip
+    print(f"wrote {out}/learning_curves.png and learning_curves.csv")
+
+
+if __name__ == "__main__":
+    main()
