@@ -523,16 +523,23 @@ def _manager_class():
 
     class Manager(ExperimentManager):
         """The zoo's ExperimentManager with the evaluation env seeded ``seed + 1000``, so
-        that it does not replay training env 0's episodes (random shapes)."""
+        that it does not replay training env 0's episodes (random shapes), and made with the
+        entry's task kwargs (``env_kwargs`` other than reward weights: the zoo passes the
+        evaluation env only those given on its command line), so that it reports the env's
+        own return on the task trained."""
 
         def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False):
             if not eval_env:
                 return super().create_envs(n_envs, eval_env, no_log)
             seed, self.seed = self.seed, self.seed + EVAL_SEED_OFFSET
+            kwargs = self.eval_env_kwargs
+            self.eval_env_kwargs = {
+                k: v for k, v in (self.env_kwargs or {}).items() if not k.startswith("reward_")
+            }
             try:
                 return super().create_envs(n_envs, eval_env, no_log)
             finally:
-                self.seed = seed
+                self.seed, self.eval_env_kwargs = seed, kwargs
 
     return Manager
 

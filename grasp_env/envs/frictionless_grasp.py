@@ -127,7 +127,8 @@ class FrictionlessGraspEnv(gym.Env):
     ## Observation Space
 
     ``Box(low, high, (24 + 3 N,), float32)`` with ``N = max_vertices`` (60 for the default
-    12). Every entry is clipped into its bounds.
+    12), and 12 more entries with ``hand_features=True`` (72). Every entry is clipped into its
+    bounds.
 
     | index | observation | min | max |
     | --- | --- | --- | --- |
@@ -151,16 +152,22 @@ class FrictionlessGraspEnv(gym.Env):
     | 21+3N | form closure (1) or not (0) | 0 | 1 |
     | 22+3N | grip objective ``y* / W`` in form closure, else ``y_max`` = 10 | 0 | 10 |
     | 23+3N | object centre height above its start (``/ w``) | -1 | 5 |
+    | 24+3N .. 26+3N | ``hand_features`` only: where the object touches the palm, finger 1, finger 2 (mean contact x in the body's frame over its length: palm from its centre, finger from its joint; 0 without contact) | -1 | 1 |
+    | 27+3N .. 30+3N | fingertip 1 ``(x, y)``, fingertip 2 ``(x, y)`` in the palm frame (``/ w``) | -2 | 2 |
+    | 31+3N .. 35+3N | distance of the palm, finger 1, finger 2, fingertip 1, fingertip 2 from the object (``/ w``; 0 in contact) | 0 | 2 |
 
     The contact forces are the simulator's: the least total force holding the object once the
     hand stops (a position-controlled hand adds no preload).
 
     ## Rewards
 
-    The reward is the sum of five terms, each reported in ``info`` as ``reward_<name>``:
+    The reward is the sum of six terms, each reported in ``info`` as ``reward_<name>``:
 
     * ``form_closure``: ``reward_form_closure_weight`` (10) once per episode, at the first
       step in form closure with the object off the support (``info["is_success"]``).
+    * ``hold``: ``reward_hold_weight`` (0) at every step in form closure with the object off
+      the support: the return counts the steps the grasp holds, as success at the episode's
+      end asks.
     * ``grip``: at every step in form closure with the object off the support,
       ``reward_grip_weight * (1 - min(y* / W, y_max) / y_max)`` with ``y_max = 10``: up to
       ``reward_grip_weight`` (0.1) for a grip needing little force. (Form closure with the
@@ -187,7 +194,13 @@ class FrictionlessGraspEnv(gym.Env):
       exactly) until each finger touches the object or the fingers jam;
     * ``"random"``: the ``"preliftoff"`` configuration perturbed uniformly by up to
       ``0.02 w`` in palm x and y, 0.05 rad in palm angle and 0.1 rad in each finger angle,
-      redrawn until the hand is clear of the object and the support.
+      redrawn until the hand is clear of the object and the support;
+    * ``"placement"``: the first pre-liftoff placement the planner tries for the object
+      (:func:`grasp_env.planning.first_placement`): palm pose (tilt included) and finger
+      closing fitted to it so that the first finger contacts lie where squeezing tips the
+      object toward the palm (its tippability regions), each finger closed to its first
+      touch; the centred placement where the object has none. A grasp is then within reach
+      of the fingers, with no approach to learn.
 
     With ``shape_randomizer`` the object is a new random convex polygon at every reset, in
     the base scene's hand set-up. ``reset(options=...)`` accepts ``{"scene": ..., "palm":
@@ -234,14 +247,15 @@ class FrictionlessGraspEnv(gym.Env):
       :func:`grasp_env.envs.shapes.random_convex_polygon`).
     * ``palm_control`` (False), ``max_finger_step`` (0.05 rad), ``max_palm_step`` ((0.02,
       0.02, 0.05): palm widths, palm widths, rad).
-    * ``start``: ``"scene"`` (default), ``"preliftoff"`` or ``"random"``.
-    * ``reward_form_closure_weight`` (10), ``reward_grip_weight`` (0.1),
+    * ``start``: ``"scene"`` (default), ``"preliftoff"``, ``"random"`` or ``"placement"``.
+    * ``reward_form_closure_weight`` (10), ``reward_hold_weight`` (0), ``reward_grip_weight`` (0.1),
       ``reward_lift_weight`` (1), ``reward_drop_weight`` (10), ``reward_ctrl_weight`` (0),
       ``gamma`` (0.99): see Rewards. Weights are finite and >= 0.
     * ``contact_tol``: the simulator's contact tolerance, relative to the palm width (1e-9; in
       [1e-11, 1e-2)).
     * ``max_vertices``: observation padding of the object's vertices (12).
     * ``always_compute_grip``: also compute ``y*`` outside form closure (False: skipped).
+    * ``hand_features``: append the hand features to the observation (False).
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
       ``render_height`` (640, 480).
 
@@ -267,7 +281,7 @@ class FrictionlessGraspEnv(gym.Env):
       closure; the spec has ``reward_threshold=10``; bundled scene names always mean the
       bundled scenes.
 
-    Registered ids (``grasp_env.envs.ENV_KWARGS``), both ``max_episode_steps=200`` and
+    Registered ids (``grasp_env.envs.ENV_KWARGS``), all with ``max_episode_steps=200`` and
     ``reward_threshold=10`` with the default reward weights; keyword arguments of
     ``gymnasium.make`` override the registered ones:
 
@@ -275,7 +289,9 @@ class FrictionlessGraspEnv(gym.Env):
       two finger actions, ``start="scene"``);
     * ``FrictionlessGraspRandomShapes-v0``: ``scene="fig13", shape_randomizer=True,
       palm_control=True, start="scene"`` (a new random shape at every reset in fig13's hand
-      set-up, five actions).
+      set-up, five actions);
+    * ``FrictionlessGraspLift-v0``: the same with ``start="placement", hand_features=True``
+      (the hand starts at the planner's first placement for each shape: lift and hold).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 30}

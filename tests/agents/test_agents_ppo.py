@@ -429,3 +429,28 @@ def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     with pytest.raises(SystemExit):
         lc.main([str(tmp_path), "--out", str(tmp_path / "x")])
     assert "not a run folder with checkpoints" in capsys.readouterr().err
+
+
+def test_evaluation_env_gets_the_entrys_task_kwargs(tmp_path):
+    """An entry whose env_kwargs change the task (here the observation's vertex padding)
+    trains and evaluates on that task: the evaluation env is made with the same kwargs, less
+    the reward weights (it reports the env's own return)."""
+    pytest.importorskip("rl_zoo3")
+    env_kwargs = {"reward_grip_weight": 1.0, "max_episode_steps": 16, "max_vertices": 8}
+    tp.train(
+        ENV_ID,
+        conf_file=CONFIG,
+        hyperparams={**TINY, "env_kwargs": env_kwargs},
+        n_timesteps=128,
+        log_folder=tmp_path / "runs",
+        out=tmp_path / "model",
+        eval_freq=128,
+        n_eval_episodes=1,
+        save_freq=0,
+        print_freq=0,
+    )
+    model, _, _, entry = tp.load_agent(tmp_path / "model")
+    assert entry["env_kwargs"]["max_vertices"] == 8
+    assert model.observation_space.shape == (24 + 3 * 8,)
+    (run,) = (tmp_path / "runs" / "ppo").iterdir()
+    assert len(np.load(run / "evaluations.npz")["results"]) == 1  # the evaluation ran
