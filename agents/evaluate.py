@@ -224,7 +224,7 @@ def run_episode(
     ep.success = bool(info["is_success"])
     if ep.success:
         ep.grip = float(info["grip_force"])
-        ep.grip_W = float(obs[-2])  # y* / W (observation entry 22 + 3N)
+        ep.grip_W = ep.grip / env.unwrapped.scene.object_weight
     env.close()
     return ep
 

@@ -152,9 +152,14 @@ class FrictionlessGraspEnv(gym.Env):
     | 21+3N | form closure (1) or not (0) | 0 | 1 |
     | 22+3N | grip objective ``y* / W`` in form closure, else ``y_max`` = 10 | 0 | 10 |
     | 23+3N | object centre height above its start (``/ w``) | -1 | 5 |
-    | 24+3N .. 26+3N | ``hand_features`` only: where the object touches the palm, finger 1, finger 2 (mean contact x in the body's frame over its length: palm from its centre, finger from its joint; 0 without contact) | -1 | 1 |
-    | 27+3N .. 30+3N | fingertip 1 ``(x, y)``, fingertip 2 ``(x, y)`` in the palm frame (``/ w``) | -2 | 2 |
-    | 31+3N .. 35+3N | distance of the palm, finger 1, finger 2, fingertip 1, fingertip 2 from the object (``/ w``; 0 in contact) | 0 | 2 |
+    | 24+3N .. 26+3N | contact position on the palm, finger 1, finger 2 (a) | -1 | 1 |
+    | 27+3N .. 30+3N | fingertip 1 ``(x, y)``, fingertip 2 ``(x, y)``, palm frame (a) | -2 | 2 |
+    | 31+3N .. 35+3N | distance of palm, fingers 1, 2, fingertips 1, 2 from the object (a) | 0 | 2 |
+
+    (a) With ``hand_features=True`` only, lengths ``/ w``. A contact position is the mean x
+    of the body's contact points in its own frame over its length (palm: from its centre;
+    finger: from its joint), 0 where the body has no contact; distances are Euclidean
+    between the polygons (0 in contact).
 
     The contact forces are the simulator's: the least total force holding the object once the
     hand stops (a position-controlled hand adds no preload).
