@@ -275,7 +275,8 @@ def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
         if not eps:
             continue
         n, k = len(eps), sum(e.success for e in eps)
-        grips = [e.grip_W for e in eps if e.success]
+        # a grasp whose torque limits admit no grip has y* = inf: counted, not averaged
+        grips = [e.grip_W for e in eps if e.success and math.isfinite(e.grip_W)]
         closure = [e.steps_to_closure for e in eps if e.reached]
         lo, hi = wilson(k, n)
         g_lo, g_hi = bootstrap_mean(grips)
@@ -295,6 +296,7 @@ def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
                 "steps_to_closure_mean": float(np.mean(closure)) if closure else math.nan,
                 "steps_to_closure_ci_low": s_lo,
                 "steps_to_closure_ci_high": s_hi,
+                "grip_infinite": sum(e.success and math.isinf(e.grip_W) for e in eps),
                 "drops": sum(e.dropped for e in eps),
                 "jams": sum(e.jammed for e in eps),
                 "errors": sum(bool(e.error) for e in eps),

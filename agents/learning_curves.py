@@ -13,7 +13,8 @@ one per seed, all of one env id). Two curves per run:
   ``VecNormalize`` statistics) at a multiple of ``--every`` steps, and the final model, played
   deterministically on ``--shapes`` validation episodes of the run's env id (seeds
   ``VALIDATION_SEED + k``: neither the training seeds nor the held-out ones of
-  ``agents.evaluate``): success rate and mean ``y* / W`` over the successes.
+  ``agents.evaluate``): success rate and mean ``y* / W`` over the successes (those whose
+  torque limits admit no grip, ``y* = inf``, left out).
 
 Writes ``learning_curves.png`` (two panels: success, ``y*/W``; the mean over seeds with the
 band from the lowest to the highest seed) and ``learning_curves.csv`` (one row per run and
@@ -101,7 +102,8 @@ def play(job: tuple) -> tuple[int, int, list[float]]:
                 break
         if info["is_success"]:
             won += 1
-            grips.append(info["grip_force"] / env.unwrapped.scene.object_weight)
+            if math.isfinite(info["grip_force"]):  # not where torque limits admit no grip
+                grips.append(info["grip_force"] / env.unwrapped.scene.object_weight)
     env.close()
     return steps, won, grips
 
@@ -144,14 +146,23 @@ def plot(path: Path, rows: list[dict], training: dict[str, list], title: str) ->
         if points:
             x, y = zip(*points, strict=True)
             axes[0].plot(x, y, lw=0.8, alpha=0.5, label=f"training episodes, {name}")
+    runs = {r["run"] for r in rows}
+    # the checkpoints every run has; each run's final model (at its own steps) on its own
+    steps = sorted(
+        s for s in {r["steps"] for r in rows} if sum(r["steps"] == s for r in rows) == len(runs)
+    )
+    finals = [r for r in rows if r["steps"] not in steps]
     for ax, key in zip(axes, ("success_rate", "grip_W_mean"), strict=True):
-        steps = sorted({r["steps"] for r in rows})
-        by_step = [[r[key] for r in rows if r["steps"] == s] for s in steps]
+        by_step = [np.array([r[key] for r in rows if r["steps"] == s], float) for s in steps]
         mean = [np.nanmean(v) if np.isfinite(v).any() else math.nan for v in by_step]
         lo = [np.nanmin(v) if np.isfinite(v).any() else math.nan for v in by_step]
         hi = [np.nanmax(v) if np.isfinite(v).any() else math.nan for v in by_step]
         ax.plot(steps, mean, "k-o", ms=3, label="checkpoints: mean over seeds")
         ax.fill_between(steps, lo, hi, color="k", alpha=0.15, label="lowest to highest seed")
+        if finals:
+            ax.plot(
+                [r["steps"] for r in finals], [r[key] for r in finals], "kx", label="final models"
+            )
         ax.set_xlabel("env steps")
         ax.ticklabel_format(axis="x", style="sci", scilimits=(6, 6))
     axes[0].set_ylabel("success rate")

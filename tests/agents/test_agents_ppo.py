@@ -71,6 +71,20 @@ def test_shipped_models_keep_their_set_up():
         _, norm, loaded, entry = tp.load_agent(tp.MODEL_DIR / name)
         assert loaded == name and entry["env_id"] == env_id and norm is not None
         assert entry["env_kwargs"] == {**ENV_KWARGS[env_id], "reward_grip_weight": 1.0}
+    model, norm, _, entry = tp.load_agent(tp.MODEL_DIR / "lift_palm")
+    reward = tp.get_entry(tp.load_config(CONFIG), LIFT_ENV_ID)["env_kwargs"]
+    assert entry["env_id"] == LIFT_ENV_ID and norm is not None
+    assert entry["env_kwargs"] == {**ENV_KWARGS[LIFT_ENV_ID], **reward}
+    env = gym.make(LIFT_ENV_ID)
+    assert model.observation_space.shape == env.observation_space.shape
+    assert ev.ppo_spec(tp.MODEL_DIR / "lift_palm").env_kwargs == {
+        "palm_control": True,
+        "hand_features": True,
+    }
+    # the paper's set-up trained from perturbed starts: the suites set the start
+    _, norm, _, entry = tp.load_agent(tp.MODEL_DIR / "fig13_perturbed")
+    assert entry["env_id"] == ENV_ID and entry["env_kwargs"]["start"] == "random"
+    assert ev.ppo_spec(tp.MODEL_DIR / "fig13_perturbed").env_kwargs == {}
     spec = ev.ppo_spec(tp.MODEL_DIR / "random_shapes_palm")
     assert spec.name == "ppo_random_shapes_palm"
     assert spec.env_kwargs == {"palm_control": True}  # the suites set the start
