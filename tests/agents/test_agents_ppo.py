@@ -195,19 +195,24 @@ def trained(tmp_path_factory) -> Path:
     settings with tiny rollouts), written to a model directory ``tiny``."""
     pytest.importorskip("rl_zoo3")
     tmp = tmp_path_factory.mktemp("ppo")
+    _train_tiny(tmp, "tiny", TINY, 256, save_freq=128)
+    return tmp / "tiny"
+
+
+def _train_tiny(folder: Path, name: str, hyperparams: dict, steps: int, save_freq: int) -> None:
+    """A tiny fig13 run into ``folder/runs``, its model directory ``folder/name``."""
     tp.train(
         ENV_ID,
         conf_file=CONFIG,
-        hyperparams=TINY,
-        n_timesteps=256,
-        log_folder=tmp / "runs",
-        out=tmp / "tiny",
+        hyperparams=hyperparams,
+        n_timesteps=steps,
+        log_folder=folder / "runs",
+        out=folder / name,
         eval_freq=128,
         n_eval_episodes=1,
-        save_freq=128,
+        save_freq=save_freq,
         print_freq=0,
     )
-    return tmp / "tiny"
 
 
 def test_tiny_training_saves_and_reloads(trained):
@@ -451,18 +456,7 @@ def test_evaluation_env_gets_the_entrys_task_kwargs(tmp_path):
     the reward weights (it reports the env's own return)."""
     pytest.importorskip("rl_zoo3")
     env_kwargs = {"reward_grip_weight": 1.0, "max_episode_steps": 16, "max_vertices": 8}
-    tp.train(
-        ENV_ID,
-        conf_file=CONFIG,
-        hyperparams={**TINY, "env_kwargs": env_kwargs},
-        n_timesteps=128,
-        log_folder=tmp_path / "runs",
-        out=tmp_path / "model",
-        eval_freq=128,
-        n_eval_episodes=1,
-        save_freq=0,
-        print_freq=0,
-    )
+    _train_tiny(tmp_path, "model", {**TINY, "env_kwargs": env_kwargs}, 128, save_freq=0)
     model, _, _, entry = tp.load_agent(tmp_path / "model")
     assert entry["env_kwargs"]["max_vertices"] == 8
     assert model.observation_space.shape == (24 + 3 * 8,)
