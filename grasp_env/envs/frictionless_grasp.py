@@ -284,7 +284,9 @@ class FrictionlessGraspEnv(gym.Env):
 
     * v0: initial version. ``info["grip_force"]`` is a plain float, ``inf`` outside form
       closure; the spec has ``reward_threshold=10``; bundled scene names always mean the
-      bundled scenes.
+      bundled scenes. Added since, with defaults that leave the env as it was: the
+      ``"placement"`` start, ``hand_features`` and ``reward_hold_weight``
+      (``info["reward_hold"]``).
 
     Registered ids (``grasp_env.envs.ENV_KWARGS``), all with ``max_episode_steps=200`` and
     ``reward_threshold=10`` with the default reward weights; keyword arguments of
