@@ -194,7 +194,7 @@ class ScriptedPolicy:
 
     Works with ``palm_control`` False or True (the palm actions stay zero) from the
     ``"scene"`` start when the scene's palm is over the object (as in every bundled scene),
-    and from the ``"preliftoff"`` start, on scenes that lift from there.
+    and from the ``"preliftoff"`` and ``"placement"`` starts, on scenes that lift from there.
 
     With ``palm_control`` True, if lifting from the env's placement fails and the object still
     rests at its scene pose, it runs :func:`grasp_env.planning.plan_grasp` on the env's scene
