@@ -44,22 +44,41 @@ def settle(model, q: np.ndarray, h: np.ndarray, solves: np.ndarray):
     return q, events
 
 
+#: Rounds of conservative advancement :func:`hand_stays_clear` takes before it leaves a move
+#: that keeps coming closer to the object to the full simulation.
+CLEAR_ROUNDS = 8
+
+
 @njit(cache=CACHE)
 def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known: np.ndarray):
     """Whether a move ``dh`` from ``h0`` leaves alone an object resting on the support
     alone: every hand body stays farther from it than contact detection looks (``10 tol``)
-    all along, so no contact is made or lost and the object stays at rest. A body's
-    separating distance along its best axis changes by at most how far its vertices move
-    (:func:`grasp_env.sim.hand.vertex_speeds`)."""
+    all along, so no contact is made or lost and the object stays at rest.
+
+    Conservative advancement: a body's separating distance along its best axis (a lower
+    bound on its distance) shrinks by at most how far its vertices move
+    (:func:`grasp_env.sim.hand.vertex_speeds`), so from ``s`` the hand may go on until the
+    first body could have used up its clearance; the distances are measured again there,
+    up to ``CLEAR_ROUNDS`` times. A hand that passes close by the object is cleared in a few
+    rounds; one that comes within the margin is not."""
     if not contact_sets.all_on_support(known):
         return False
-    world = place(model, q, h0)
     travel = vertex_speeds(model, dh)
     margin = 10.0 * model.tol
-    for b in range(1, 4):
-        if separation(world, model.n_object, model.n_vertices, b) <= travel[b - 1] + margin:
-            return False
-    return True
+    s = 0.0
+    for _ in range(CLEAR_ROUNDS):
+        world = place(model, q, h0 + s * dh)
+        ds = np.inf
+        for b in range(1, 4):
+            clear = separation(world, model.n_object, model.n_vertices, b) - margin
+            if clear <= 0.0:
+                return False
+            if travel[b - 1] > 0.0:
+                ds = min(ds, clear / travel[b - 1])
+        s += ds
+        if s > 1.0:
+            return True
+    return False
 
 
 #: Layout of the float array :func:`move_hand` returns: the object pose, the hand, the ``s``

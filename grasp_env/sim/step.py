@@ -220,6 +220,21 @@ def trigger_value(model, q, h, E, kind: int, key: np.ndarray) -> float:
 
 
 @njit(cache=CACHE)
+def band_target(start: float, tol: float) -> float:
+    """The value an event search aims its check at, given the check's value ``start`` at the
+    consistent end of the bracket: the middle of the band's consistent half, ``-tol / 2``
+    (inside the band rather than at the limit, so a located contact force is clearly
+    positive or a gap clearly closed, not at a degenerate zero); where ``start`` already
+    lies above it (a contact touching at the start, the event right there), the middle
+    between ``start`` and ``tol``, which the check reaches in one interpolation where it is
+    linear (the midpoint would take one halving per bit)."""
+    target = -0.5 * tol
+    if start > target:
+        target = 0.5 * (start + tol)
+    return target
+
+
+@njit(cache=CACHE)
 def locate(
     model, q: np.ndarray, s_lo: float, s_hi: float, E: np.ndarray, v: np.ndarray,
     h0: np.ndarray, dh: np.ndarray, kind: int, key: np.ndarray, value: float,
@@ -231,16 +246,15 @@ def locate(
     its limit and nothing is violated beyond it.
 
     The bracket keeps a consistent ``s_lo`` and a violated ``s_hi``, as bisection does; the
-    next point is where the trigger's check, linear between the ends, reaches the middle of
-    the consistent half of its band, ``-tol / 2`` (regula falsi with the Illinois rule: an
-    end kept twice in a row has its value halved), and the midpoint whenever the check is
-    not known at both ends (a failed solve, the equilibrium residual, another check taking
-    over). Aiming inside the band rather than at the limit itself leaves a located contact
-    force clearly positive or a gap clearly closed, not at a degenerate zero.
+    next point is where the trigger's check, linear between the ends, reaches
+    :func:`band_target` (regula falsi with the Illinois rule: an end kept twice in a row has
+    its value halved), and the midpoint whenever the check is not known at both ends (a
+    failed solve, the equilibrium residual, another check taking over).
     """
     q_lo = q
-    target = -0.5 * model.tol  # mid-band, on the consistent side, as bisection lands on average
-    lo_value = trigger_value(model, q, h0 + s_lo * dh, E, kind, key) - target
+    start = trigger_value(model, q, h0 + s_lo * dh, E, kind, key)
+    target = band_target(start, model.tol)
+    lo_value = start - target
     hi_value = value - target
     kept = 0  # +1: s_lo was kept by the last point, -1: s_hi was
     for _ in range(200):

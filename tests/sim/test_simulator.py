@@ -835,6 +835,44 @@ def test_first_contact_located_to_tolerance(dq: float) -> None:
     assert errors[2] <= max(errors[1] / 10, ROUNDING), errors
 
 
+#: Moves of the fig13 hand from a random-action episode (start "preliftoff") in which a
+#: contact is lost and the object falls onto another: object pose, hand before and after.
+#: Their events lie where a contact already touches at the start of the search (the check
+#: sits in its band from the start); bisecting to it took 371-417 pose solves a move.
+FALLING_MOVES = [
+    (
+        [-0.1147098442461648, 0.409938965680756, -0.14257367683740604],
+        [0.014953080375357005, 0.71, 0.0, -1.167714949105311, -2.3712498905065442],
+        [-1.1375268922787194, -2.413602906644621],
+    ),
+    (
+        [0.01514043088365168, 0.41527799968303064, 0.09851769703097812],
+        [0.014953080375357005, 0.71, 0.0, -0.9266235752369267, -2.2048864736436653],
+        [-0.9186265571380956, -2.173997501957302],
+    ),
+    (
+        [0.07029270147296748, 0.4682165146195437, 0.23754392853595913],
+        [0.014953080375357005, 0.71, 0.0, -0.7875973437319501, -2.1671927574305583],
+        [-0.7627749163995489, -2.125860891047006],
+    ),
+]
+
+
+@pytest.mark.parametrize(("pose", "hand", "fingers"), FALLING_MOVES)
+def test_events_at_the_start_of_a_search_take_few_solves(pose, hand, fingers) -> None:
+    """An event whose check already lies within tolerance where the search starts is
+    reached by interpolation, not by halving to the last bit: the move falls, ends in a state
+    the independent checker passes, and needs at most 330 pose solves."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.settle(np.array(pose), np.array(hand))
+    end = sim.move_hand(start, fingers=fingers)
+    kinds = [e.kind for e in end.events]
+    assert "lost_contact" in kinds and "fall_end" in kinds, kinds
+    np.testing.assert_array_equal(end.finger_angles, fingers)
+    assert_invariants(end, sim.tol)
+    assert sim.solves <= 330, sim.solves
+
+
 @pytest.mark.parametrize("dq", CLOSING.values(), ids=CLOSING.keys())
 def test_final_pose_converges_with_contact_tol(dq: float) -> None:
     """The final pose at contact_tol 1e-5 and 1e-7 approaches the 1e-9 run: within the
