@@ -32,7 +32,13 @@ from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import Scene
 from grasp_env.core.scene_loading import load_scene
-from grasp_env.core.state import KIND_NAMES, Contact, ContactKey, Event, State
+from grasp_env.core.state import (
+    ContactKey,
+    Event,
+    State,
+    contacts_from_arrays,
+    keep_contact_arrays,
+)
 from grasp_env.errors import ComputationError, SimulationError, WorkLimitError
 from grasp_env.mechanics import closure as mech
 from grasp_env.mechanics import contacts as ct
@@ -240,7 +246,10 @@ class Simulator:
             events.append(Event("hand_blocked", s_end))
         q, h = out[move.OUT_Q], out[move.OUT_H]
         if untouched:  # the object and its contacts are as they were
-            return self._new_state(q, h, state.contacts, known, events, False, blocked)
+            new = self._new_state(q, h, state.contacts, known, events, False, blocked)
+            if state._arrays is not None:
+                keep_contact_arrays(new, *state._arrays)
+            return new
         return self._state(q, h, keys, rows, events, bool(jammed), blocked)
 
     def _move(self, q0: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray):
@@ -278,20 +287,13 @@ class Simulator:
 
     def _state(self, q, h, keys, rows, events, jammed=False, blocked=False) -> State:
         """A :class:`State` from the compiled :func:`grasp_env.sim.move.at_rest` output."""
-        contacts = tuple(
-            Contact(
-                body=geo.BODY_NAMES[key.body],
-                kind=KIND_NAMES[key.kind],
-                point=row[move.ROW_POINT],
-                normal=row[move.ROW_NORMAL],
-                force=float(row[move.ROW_FORCE]),
-                object_feature=key.object_feature,
-                hand_feature=key.hand_feature,
-                gap=float(row[move.ROW_GAP]),
-            )
-            for key, row in zip(map(ContactKey._make, keys.tolist()), rows, strict=True)
-        )
-        return self._new_state(q, h, contacts, keys, events, jammed, blocked)
+        points, normals = rows[:, move.ROW_POINT], rows[:, move.ROW_NORMAL]
+        contacts = contacts_from_arrays(
+            keys.tolist(), points, normals, rows[:, move.ROW_FORCE].tolist(),
+            rows[:, move.ROW_GAP].tolist(),
+        )  # fmt: skip
+        state = self._new_state(q, h, contacts, keys, events, jammed, blocked)
+        return keep_contact_arrays(state, points.copy(), normals.copy(), keys[:, 0].copy())
 
     def _new_state(self, q, h, contacts, keys, events, jammed, blocked) -> State:
         """The State, remembered with its contact keys for the next move from it."""

@@ -132,6 +132,12 @@ class State:
     jammed: bool = False
     hand_blocked: bool = False
     events: tuple[Event, ...] = field(default=())
+    #: :meth:`contact_arrays`, kept once gathered (the simulator sets its own,
+    #: :func:`keep_contact_arrays`); not a constructor argument, so a copy made with other
+    #: contacts (``dataclasses.replace``) gathers its own.
+    _arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(
+        default=None, init=False, repr=False
+    )
 
     @property
     def on_support(self) -> bool:
@@ -147,9 +153,45 @@ class State:
         return self.hand[3:]
 
     def contact_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Points (n, 2), normals (n, 2) and body indices (n,) of the contacts."""
-        n = len(self.contacts)
-        pts = np.array([c.point for c in self.contacts]).reshape(n, 2)
-        nrm = np.array([c.normal for c in self.contacts]).reshape(n, 2)
-        bodies = np.array([BODY_NAMES.index(c.body) for c in self.contacts], dtype=int)
-        return pts, nrm, bodies
+        """Points (n, 2), normals (n, 2) and body indices (n,) of the contacts (new arrays
+        each call)."""
+        if self._arrays is None:
+            n = len(self.contacts)
+            pts = np.array([c.point for c in self.contacts], dtype=float).reshape(n, 2)
+            nrm = np.array([c.normal for c in self.contacts], dtype=float).reshape(n, 2)
+            bodies = np.array([BODY_NAMES.index(c.body) for c in self.contacts], dtype=int)
+            keep_contact_arrays(self, pts, nrm, bodies)
+        pts, nrm, bodies = self._arrays
+        return pts.copy(), nrm.copy(), bodies.copy()
+
+
+def contacts_from_arrays(
+    keys: list, points: np.ndarray, normals: np.ndarray, forces: list, gaps: list
+) -> tuple[Contact, ...]:
+    """Contacts from the simulator's arrays: ``keys`` as ``(body, kind, object_feature,
+    hand_feature)`` index rows, ``points`` and ``normals`` (n, 2) (each contact's are views
+    of a row), ``forces`` and ``gaps`` as floats. The same objects as ``Contact(...)`` makes,
+    filled in directly: a frozen dataclass's ``__init__`` sets each field through
+    ``object.__setattr__``, and this runs at every simulated step."""
+    out = []
+    for i, (body, kind, object_feature, hand_feature) in enumerate(keys):
+        c = _new_object(Contact)
+        c.__dict__.update(
+            body=BODY_NAMES[body], kind=KIND_NAMES[kind], point=points[i], normal=normals[i],
+            force=forces[i], object_feature=object_feature, hand_feature=hand_feature,
+            gap=gaps[i],
+        )  # fmt: skip
+        out.append(c)
+    return tuple(out)
+
+
+_new_object = object.__new__
+
+
+def keep_contact_arrays(
+    state: State, points: np.ndarray, normals: np.ndarray, bodies: np.ndarray
+) -> State:
+    """``state`` holding its contacts' points (n, 2), normals (n, 2) and body indices (n,)
+    for :meth:`State.contact_arrays` (they must be its contacts', in order)."""
+    object.__setattr__(state, "_arrays", (points, normals, bodies))
+    return state

@@ -629,6 +629,34 @@ def tip_state_at(dq: float) -> tuple[Simulator, State]:
     return sim, sim.move_hand(state, fingers=(q1, TIP.q2))
 
 
+def test_contact_arrays_are_the_contacts() -> None:
+    """``State.contact_arrays`` (kept from the simulator's arrays) equals the contacts' own
+    points, normals and bodies, moved or untouched, returns new arrays each call, and a copy
+    of the state with other contacts (``dataclasses.replace``) gives the new contacts'."""
+    import dataclasses
+
+    from grasp_env.core.geometry import BODY_NAMES
+
+    sim = Simulator(scene_of("fig13"))
+    state = sim.reset()
+    states = [state]
+    for dq in (0.3, 0.3, 0.3, 0.2, 0.0):  # closing until the fingers touch; then untouched
+        state = sim.move_hand(state, fingers=state.finger_angles + np.array([dq, -dq]))
+        states.append(state)
+    assert any(c.body.startswith("finger") for c in states[-1].contacts)
+    for st in states:
+        points, normals, bodies = st.contact_arrays()
+        np.testing.assert_array_equal(points, [c.point for c in st.contacts])
+        np.testing.assert_array_equal(normals, [c.normal for c in st.contacts])
+        np.testing.assert_array_equal(bodies, [BODY_NAMES.index(c.body) for c in st.contacts])
+        points[:] = np.nan  # a caller's array, not the state's
+        assert np.isfinite(st.contact_arrays()[0]).all()
+    fewer = dataclasses.replace(states[-1], contacts=states[-1].contacts[:1])
+    points, _, bodies = fewer.contact_arrays()
+    np.testing.assert_array_equal(points, [states[-1].contacts[0].point])
+    assert bodies.shape == (1,)
+
+
 def test_one_move_equals_ten_without_events() -> None:
     """Inside phase A of the tipping block (no event between), one move and ten equal moves
     end in the same state, and both on the closed form."""
