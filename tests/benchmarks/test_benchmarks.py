@@ -14,6 +14,7 @@ from benchmarks import (
     memory,
     planner_shapes,
     profile_step,
+    scripted_speedup,
     step_times,
     throughput,
     work_precision,
@@ -31,6 +32,12 @@ from benchmarks.__main__ import main as run_suite
         ),
         pytest.param(lambda out: profile_step.run(True, out, steps=3, closing=False), id="profile"),
         pytest.param(lambda out: memory.run(True, out, steps=2, repeat=1, workers=2), id="memory"),
+        pytest.param(
+            lambda out: scripted_speedup.run(
+                Path(scripted_speedup.__file__).parent.parent, budget=0.05, rounds=1, out=out
+            ),
+            id="scripted_speedup",
+        ),
     ],
 )
 def test_piece_writes_markdown(piece, tmp_path):
@@ -136,3 +143,10 @@ def test_suite_refuses_a_bad_out_before_running(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and str(out) in err
     assert not (tmp_path / "memory.md").exists()
+
+
+def test_scripted_speedup_exports_a_commit(tmp_path):
+    """The earlier commit's tree is exported beside the work tree, not over it."""
+    tree = scripted_speedup.export("HEAD", tmp_path)
+    assert (tree / "grasp_env" / "__init__.py").is_file()
+    assert (tree / "agents" / "scripted.py").is_file()
