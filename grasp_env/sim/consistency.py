@@ -86,16 +86,27 @@ def violations(
 
 
 @njit(cache=CACHE)
+def geometry_terms(
+    world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray
+) -> np.ndarray:
+    """The terms of :func:`geometry_violation`, shape (3,): the deepest penetration by a
+    vertex not pinned by ``keys`` (minus the smallest gap), the deepest overlap of a hand body
+    (minus its separation; about zero for a body that touches), and how far an active
+    contact lies past the end of its edge."""
+    gap, _ = clearance.min_gap(world, n_object, n_vertices, np.arange(4), pinned_vertices(keys))
+    out = np.array([-gap, -np.inf, -np.inf])
+    out[1] = clearance.max_overlap(world, n_object, n_vertices, np.arange(1, 4))[0]
+    _, _, _, T, L = contact_rows(world, n_object, n_vertices, keys)
+    ends = _edge_ends(T, L)
+    for i in range(ends.shape[0]):
+        out[2] = max(out[2], ends[i])
+    return out
+
+
+@njit(cache=CACHE)
 def geometry_violation(
     world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray
 ) -> float:
     """The worst geometric violation of the active set ``keys``: penetration by a vertex not
     pinned by it, overlap of a hand body, or a contact point past the end of its edge."""
-    gap, _ = clearance.min_gap(world, n_object, n_vertices, np.arange(4), pinned_vertices(keys))
-    worst = -gap
-    worst = max(worst, clearance.max_overlap(world, n_object, n_vertices, np.arange(1, 4))[0])
-    _, _, _, T, L = contact_rows(world, n_object, n_vertices, keys)
-    ends = _edge_ends(T, L)
-    for i in range(ends.shape[0]):
-        worst = max(worst, ends[i])
-    return worst
+    return geometry_terms(world, n_object, n_vertices, keys).max()

@@ -17,7 +17,7 @@ from numba import njit
 
 from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
-from grasp_env.sim import contact_sets, detection
+from grasp_env.sim import consistency, contact_sets, detection
 from grasp_env.sim.equilibrium import MAX_FORCE, held
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
@@ -62,10 +62,20 @@ def descent(model, world: np.ndarray, q: np.ndarray, keys: np.ndarray):
 def fall_step(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray, solves):
     """One fall step of at most ``d``, shortened to the first new contact or edge end:
     ``(q_new, at_event, moved)``; ``at_event`` when the step was shortened to an event,
-    ``moved`` False when no point along ``d`` was admissible (``q_new`` is ``q``)."""
+    ``moved`` False when no point along ``d`` was admissible (``q_new`` is ``q``).
+
+    The event is located by bisection on the term of the geometric violation
+    (:func:`grasp_env.sim.consistency.geometry_terms`) that the nearest violated point
+    violates: a point with nothing violated is the event when that term lies within
+    tolerance of its limit. (The other terms may sit there already: a hand body touching the
+    object overlaps it by about zero.)"""
     q1, ok = newton(model, q + d, h, E, solves)
-    if ok and geometry_violation(model, q1, h, E) <= model.tol:
-        return q1, False, True
+    trigger = -1  # the term violated at hi; -1: not known (a failed solve)
+    if ok:
+        terms = _terms(model, q1, h, E)
+        if terms.max() <= model.tol:
+            return q1, False, True
+        trigger = int(np.argmax(terms))
     lo, hi, q_lo, moved = 0.0, 1.0, q, False
     for _ in range(200):
         mid = 0.5 * (lo + hi)
@@ -73,16 +83,22 @@ def fall_step(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray,
             break  # located to rounding (near 1 doubles are 1.1e-16 apart)
         q_mid, ok = newton(model, q + mid * d, h, E, solves)
         if not ok:
-            hi = mid
+            hi, trigger = mid, -1
             continue
-        violation = geometry_violation(model, q_mid, h, E)
-        if violation > model.tol:
-            hi = mid
-        elif violation >= -model.tol:
+        terms = _terms(model, q_mid, h, E)
+        if terms.max() > model.tol:
+            hi, trigger = mid, int(np.argmax(terms))
+        elif (terms[trigger] if trigger >= 0 else terms.max()) >= -model.tol:
             return q_mid, True, True
         else:
             lo, q_lo, moved = mid, q_mid, True
     return q_lo, True, moved
+
+
+@njit(cache=CACHE)
+def _terms(model, q: np.ndarray, h: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """:func:`grasp_env.sim.consistency.geometry_terms` at ``(q, h)``."""
+    return consistency.geometry_terms(place(model, q, h), model.n_object, model.n_vertices, E)
 
 
 @njit(cache=CACHE)
