@@ -203,24 +203,11 @@ def test_scripted_policy_succeeds_on_every_tippable_scene(scene, start):
     assert info["is_success"]
 
 
-#: The policy's exploratory lifting runs from the env's state on the env's step function;
-#: from tall_rectangle's pre-liftoff start (fingers closed on it) it finds no re-grasp within
-#: its budget, from the scene start it does.
-EXPLORE_MISSES = {("tall_rectangle", "preliftoff")}
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("scene", "start"),
     [
-        pytest.param(
-            s,
-            start,
-            marks=[pytest.mark.xfail(strict=True, reason="see EXPLORE_MISSES")]
-            if (s, start) in EXPLORE_MISSES
-            else [],
-            id=f"{start}-{s}",
-        )
+        pytest.param(s, start, id=f"{start}-{s}")
         for start in ("preliftoff", "scene")
         for s in sorted(NEEDS_PALM)
     ],
