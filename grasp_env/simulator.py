@@ -223,11 +223,19 @@ class Simulator:
                 increments.
         """
         target = state.hand.tolist()
-        joint_limit = False
         if palm is not None:
             target[:3] = _finite_floats(palm, 3, "palm")
-        if fingers is not None:
-            f1, f2 = _finite_floats(fingers, 2, "fingers")
+        if fingers is None:
+            return self._move_to(state, target, False)
+        target[3:] = _finite_floats(fingers, 2, "fingers")
+        return self._move_to(state, target, True)
+
+    def _move_to(self, state: State, target: list, clip_fingers: bool) -> State:
+        """:meth:`move_hand` to ``target``, five finite Python floats (the callers check
+        them), its finger angles first clipped to the joint limits if ``clip_fingers``."""
+        joint_limit = False
+        if clip_fingers:
+            f1, f2 = target[3], target[4]
             (low1, low2), (high1, high2) = self._joint_low, self._joint_high
             target[3], target[4] = min(max(f1, low1), high1), min(max(f2, low2), high2)
             joint_limit = target[3] != f1 or target[4] != f2

@@ -475,7 +475,10 @@ class FrictionlessGraspEnv(gym.Env):
         is finite real numbers of the action space's shape."""
         size = self.action_space.shape[0]
         if type(action) is np.ndarray and action.dtype.kind == "f" and action.shape == (size,):
-            values = action.tolist()  # the common case, checked as _vector would
+            values = action.tolist()  # the common case, checked as real_vector would
+            total = sum(values)  # finite only if every value is (or on overflow: see below)
+            if total - total == 0.0 and -1.0 <= min(values) and max(values) <= 1.0:
+                return values  # already in the action space
             if not all(map(math.isfinite, values)):
                 raise ValueError(f"action must be finite, got {short(action)}")
         else:
@@ -633,18 +636,22 @@ class FrictionlessGraspEnv(gym.Env):
             raise RuntimeError("call reset() before simulate_action()")
         if not isinstance(state, State):
             raise TypeError(f"state must be a grasp_env.State, got {short(state)}")
+        real_vector(state.hand, "state.hand", 5)  # the move's target is made from it
         return self._simulate(state, a)
 
     def _simulate(self, state: State, a: list[float]) -> State:
         """:meth:`simulate_action` of a checked action (floats in [-1, 1])."""
-        h = state.hand.tolist()
+        target = state.hand.tolist()
         step = self.max_finger_step
-        fingers = (h[3] + step * a[0], h[4] - step * a[1])  # both close for a > 0
-        palm = None
+        target[3] += step * a[0]  # both fingers close for a > 0
+        target[4] -= step * a[1]
         if self.palm_control:
-            low, high, step = self._palm_box
-            palm = tuple(min(max(h[i] + step[i] * a[2 + i], low[i]), high[i]) for i in range(3))
-        return self._sim.move_hand(state, palm=palm, fingers=fingers)
+            (x_lo, y_lo, th_lo), (x_hi, y_hi, th_hi), (dx, dy, dth) = self._palm_box
+            x, y, th = target[:3]
+            target[0] = min(max(x + dx * a[2], x_lo), x_hi)
+            target[1] = min(max(y + dy * a[3], y_lo), y_hi)
+            target[2] = min(max(th + dth * a[4], th_lo), th_hi)
+        return self._sim._move_to(state, target, True)  # the target is checked here
 
     def _palm_limits(self, scene: Scene) -> tuple[list, list, list]:
         """The palm's workspace (lower and upper bounds of ``(x, y, theta)``) and its largest
@@ -698,9 +705,8 @@ class FrictionlessGraspEnv(gym.Env):
         for x in a:
             effort += x * x
         ctrl = -weights["ctrl"] * effort
-        terms = map(float, (bonus, hold, grip, lift, drop, ctrl))
-        reward_info = dict(zip(_REWARD_KEYS, terms, strict=True))
-        return float(sum(reward_info.values())), reward_info
+        terms = (float(bonus), float(hold), float(grip), float(lift), float(drop), float(ctrl))
+        return sum(terms), dict(zip(_REWARD_KEYS, terms, strict=True))
 
     # ------------------------------------------------------------------ observation / info
     def _get_obs(self) -> np.ndarray:
@@ -760,10 +766,11 @@ class FrictionlessGraspEnv(gym.Env):
 
     def _info(self, state: State, dropped: bool, reward_info: dict) -> dict[str, Any]:
         an = self._analysis
+        hand = state.hand.copy()
         info = {
             "object_pose": state.object_pose.copy(),
-            "palm_pose": state.palm_pose.copy(),
-            "finger_angles": state.finger_angles.copy(),
+            "palm_pose": hand[:3],
+            "finger_angles": hand[3:],
             "contacts": [c.as_dict() for c in state.contacts],
             "form_closure": bool(an.form_closure),
             "grip_force": float(an.grip) if an.form_closure else math.inf,

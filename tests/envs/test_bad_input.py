@@ -185,6 +185,8 @@ ACTIONS = [
     ("action_nested", [[0.1] * 5], r"action", r"\(1, 5\)"),
     ("action_ragged", [[0.1, 0.1], [0.1]], r"action", r"\[\[0\.1, 0\.1\], \[0\.1\]\]"),
     ("action_nan_float32", np.array([0, 0, np.nan, 0, 0], np.float32), r"action", r"nan"),
+    ("action_nan_last", np.array([0.5, 0, 0, 0, np.nan]), r"action", r"nan"),
+    ("action_infs_cancelling", np.array([np.inf, -np.inf, 0, 0, 0]), r"action", r"inf"),
 ]
 
 
@@ -311,6 +313,10 @@ def test_out_of_range_action_is_clipped_not_refused() -> None:
     env, twin = twin_envs()
     o1, *_ = env.step(np.array([7.0, 1.0, -3.0, 0.0, 0.0], dtype=np.float32))
     o2, *_ = twin.step(np.array([1.0, 1.0, -1.0, 0.0, 0.0], dtype=np.float32))
+    np.testing.assert_array_equal(o1, o2)
+    # finite, but their sum overflows
+    o1, *_ = env.step(np.array([1e308, 1e308, -1e308, -1e308, 0.0]))
+    o2, *_ = twin.step(np.array([1.0, 1.0, -1.0, -1.0, 0.0]))
     np.testing.assert_array_equal(o1, o2)
 
 

@@ -7,6 +7,7 @@ import os
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
+import dataclasses
 import inspect
 import math
 import pickle
@@ -290,6 +291,9 @@ def test_simulate_action_checks_and_clips_like_step():
         env.simulate_action(state, np.zeros(5))
     with pytest.raises(TypeError, match=r"state must be a grasp_env\.State"):
         env.simulate_action(state.hand, np.zeros(2))
+    bad = dataclasses.replace(state, hand=np.array([0.0, 0.5, math.nan, -1.0, -1.0]))
+    with pytest.raises(ValueError, match=r"state\.hand.*nan"):
+        env.simulate_action(bad, np.zeros(2))
 
 
 def test_accessors_are_documented():
@@ -732,7 +736,7 @@ def test_simulation_error_terminates_with_state_unchanged(monkeypatch):
     def fail(*args, **kwargs):
         raise grasp_env.SimulationError("fall did not come to rest")
 
-    monkeypatch.setattr(env.simulator, "move_hand", fail)
+    monkeypatch.setattr(env.simulator, "_move_to", fail)  # the env moves the hand through it
     obs2, reward, terminated, truncated, info2 = env.step(np.ones(2))
     assert terminated and not truncated and "fall did not come to rest" in info2["sim_error"]
     assert np.array_equal(obs, obs2) and np.array_equal(info["object_pose"], info2["object_pose"])
