@@ -22,7 +22,13 @@ from grasp_env.sim.equilibrium import MAX_FORCE, held
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
 from grasp_env.sim.pose import constraint_matrix
-from grasp_env.sim.step import geometry_violation, newton, newton_held
+from grasp_env.sim.step import (
+    band_target,
+    false_position,
+    geometry_violation,
+    newton,
+    newton_held,
+)
 from grasp_env.solvers import dense, least_norm
 
 #: Halvings of a fall step that lowers nothing before it counts as no way down.
@@ -64,34 +70,56 @@ def fall_step(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray,
     ``(q_new, at_event, moved)``; ``at_event`` when the step was shortened to an event,
     ``moved`` False when no point along ``d`` was admissible (``q_new`` is ``q``).
 
-    The event is located by bisection on the term of the geometric violation
+    The event is located on the term of the geometric violation
     (:func:`grasp_env.sim.consistency.geometry_terms`) that the nearest violated point
     violates: a point with nothing violated is the event when that term lies within
     tolerance of its limit. (The other terms may sit there already: a hand body touching the
-    object overlaps it by about zero.)"""
+    object overlaps it by about zero.) The search is :func:`grasp_env.sim.step.locate`'s:
+    false position toward :func:`grasp_env.sim.step.band_target` with the Illinois rule,
+    halving where the term is not known at both ends (a failed solve)."""
     q1, ok = newton(model, q + d, h, E, solves)
     trigger = -1  # the term violated at hi; -1: not known (a failed solve)
+    hi_terms = np.zeros(3)
     if ok:
-        terms = _terms(model, q1, h, E)
-        if terms.max() <= model.tol:
+        hi_terms = _terms(model, q1, h, E)
+        if hi_terms.max() <= model.tol:
             return q1, False, True
-        trigger = int(np.argmax(terms))
+        trigger = int(np.argmax(hi_terms))
+    lo_terms = _terms(model, q, h, E)
     lo, hi, q_lo, moved = 0.0, 1.0, q, False
+    kept = 0  # +1: lo was kept by the last point, -1: hi was
+    lo_value = hi_value = np.nan
+    target = 0.0  # the trigger's band target, set with the trigger
+    if trigger >= 0:
+        target = band_target(lo_terms[trigger], model.tol)
+        lo_value, hi_value = lo_terms[trigger] - target, hi_terms[trigger] - target
     for _ in range(200):
-        mid = 0.5 * (lo + hi)
+        mid = false_position(lo, hi, lo_value, hi_value)
         if hi - lo < 1e-16 or not lo < mid < hi:
             break  # located to rounding (near 1 doubles are 1.1e-16 apart)
         q_mid, ok = newton(model, q + mid * d, h, E, solves)
         if not ok:
-            hi, trigger = mid, -1
+            hi, trigger, lo_value, hi_value, kept = mid, -1, np.nan, np.nan, 0
             continue
         terms = _terms(model, q_mid, h, E)
         if terms.max() > model.tol:
-            hi, trigger = mid, int(np.argmax(terms))
+            new_trigger = int(np.argmax(terms))
+            if new_trigger != trigger:  # another term: aim at its band from lo
+                trigger, kept = new_trigger, 0
+                target = band_target(lo_terms[trigger], model.tol)
+                lo_value = lo_terms[trigger] - target
+            elif kept == 1:
+                lo_value *= 0.5
+            hi, hi_value, kept = mid, terms[trigger] - target, 1
         elif (terms[trigger] if trigger >= 0 else terms.max()) >= -model.tol:
             return q_mid, True, True
         else:
-            lo, q_lo, moved = mid, q_mid, True
+            lo, q_lo, lo_terms, moved = mid, q_mid, terms, True
+            if trigger >= 0:
+                lo_value = terms[trigger] - target
+                if kept == -1:
+                    hi_value *= 0.5
+                kept = -1
     return q_lo, True, moved
 
 

@@ -35,12 +35,9 @@ def world_points(
     c, s = math.cos(th), math.sin(th)
     ox = (q[0], h[0], h[0] - c * half, h[0] + c * half)
     oy = (q[1], h[1], h[1] - s * half, h[1] + s * half)
-    angles = (q[2], th, th + h[3], th + h[4])
-    cos_b = np.empty(4)
-    sin_b = np.empty(4)
-    for b in range(4):
-        cos_b[b] = math.cos(angles[b])
-        sin_b[b] = math.sin(angles[b])
+    th1, th2 = th + h[3], th + h[4]
+    cos_b = (math.cos(q[2]), c, math.cos(th1), math.cos(th2))
+    sin_b = (math.sin(q[2]), s, math.sin(th1), math.sin(th2))
     out = np.empty_like(points)
     for i in range(points.shape[0]):
         b = body[i]
@@ -72,13 +69,13 @@ def contact_rows(
 
     The edge parameter places the vertex's projection along its edge (0 at the edge's first
     vertex, 1 at its second); on the support it is 0.5 and the length infinite.
+
+    The five are views of one new array: one allocation instead of five, at every Newton
+    iteration and check.
     """
     m = keys.shape[0]
-    P = np.empty((m, 2))
-    N = np.empty((m, 2))
-    F = np.empty(m)
-    T = np.empty(m)
-    L = np.empty(m)
+    rows = np.empty((m, 7))
+    P, N, F, T, L = rows[:, 0:2], rows[:, 2:4], rows[:, 4], rows[:, 5], rows[:, 6]
     for i in range(m):
         body, kind, k, j = keys[i, 0], keys[i, 1], keys[i, 2], keys[i, 3]
         if kind == EDGE:

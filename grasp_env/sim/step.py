@@ -235,6 +235,20 @@ def band_target(start: float, tol: float) -> float:
 
 
 @njit(cache=CACHE)
+def false_position(lo: float, hi: float, lo_value: float, hi_value: float) -> float:
+    """The next point of a search between ``lo`` (consistent) and ``hi`` (violated) for
+    where a check reaches its target: where the check, linear between the ends, does so
+    (``lo_value < 0 < hi_value``, the values relative to the target), kept a thousandth of
+    the bracket from either end; the midpoint where either value is not known (NaN) or they
+    do not bracket the target."""
+    width = hi - lo
+    if lo_value < 0.0 < hi_value:
+        t = lo_value / (lo_value - hi_value)
+        return lo + min(max(t, 1e-3), 1.0 - 1e-3) * width
+    return lo + 0.5 * width
+
+
+@njit(cache=CACHE)
 def locate(
     model, q: np.ndarray, s_lo: float, s_hi: float, E: np.ndarray, v: np.ndarray,
     h0: np.ndarray, dh: np.ndarray, kind: int, key: np.ndarray, value: float,
@@ -258,12 +272,7 @@ def locate(
     hi_value = value - target
     kept = 0  # +1: s_lo was kept by the last point, -1: s_hi was
     for _ in range(200):
-        width = s_hi - s_lo
-        if lo_value < 0.0 < hi_value:
-            t = lo_value / (lo_value - hi_value)
-            mid = s_lo + min(max(t, 1e-3), 1.0 - 1e-3) * width
-        else:
-            mid = s_lo + 0.5 * width
+        mid = false_position(s_lo, s_hi, lo_value, hi_value)
         if mid <= s_lo or mid >= s_hi:
             break
         h = h0 + mid * dh
