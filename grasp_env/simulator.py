@@ -301,7 +301,9 @@ class Simulator:
             rows[:, move.ROW_GAP].tolist(),
         )  # fmt: skip
         state = self._new_state(q, h, contacts, keys, events, jammed, blocked)
-        return keep_contact_arrays(state, points.copy(), normals.copy(), keys[:, 0].copy())
+        # the contacts' points and normals are views of these rows: kept as they are
+        # (contact_arrays() hands out copies)
+        return keep_contact_arrays(state, points, normals, keys[:, 0])
 
     def _new_state(self, q, h, contacts, keys, events, jammed, blocked) -> State:
         """The State, remembered with its contact keys for the next move from it."""
