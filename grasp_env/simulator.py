@@ -14,7 +14,8 @@ as to minimise its potential energy without interpenetration (eqs. 19-24). Per i
 3. **Consistency.** The step is accepted if no other vertex penetrates a body, no active
    contact slides off the end of its edge, and the active contacts still hold the object with
    non-negative forces. Otherwise the first event is located on ``s`` to ``contact_tol``
-   (false position on the violated check, bracketed as in bisection); the motion stops there, the contacts are updated and the move continues.
+   (false position on the violated check, bracketed as in bisection); the motion stops
+   there, the contacts are updated and the move continues.
 
 Infeasible velocity LP: the hand cannot move on (a jam); the hand stops there. Unbounded
 velocity LP: the object falls along the steepest admissible descent of its potential energy

@@ -22,7 +22,7 @@ from grasp_env.core.scene import Scene
 from grasp_env.core.state import State
 from grasp_env.errors import SolverError
 from grasp_env.sim.pose import constraint_matrix
-from grasp_env.solvers import dense, fastlp, lp, simplex
+from grasp_env.solvers import dense, lp, simplex, velocity_lp
 
 
 def V_ob(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.ndarray:
@@ -160,9 +160,10 @@ def is_form_closure(state: State) -> bool:
     ``[n_i, r_i x n_i / rho]`` (the rows positively span R^3); :func:`escape_direction`
     (HiGHS) gives the same answer and, when there is one, the twist that escapes.
     """
-    _, _, _, V = _state_arrays(state)
-    rho = gyration_radius(state.scene)
-    return fastlp.form_closure_fast(V * np.array([1.0, 1.0, 1.0 / rho]))
+    points, normals, _ = state.contact_arrays()
+    V = constraint_matrix(points, normals, state.object_pose)  # V_ob (the pose's x, y)
+    V[:, 2] *= 1.0 / gyration_radius(state.scene)
+    return velocity_lp.form_closure(V)  # what form_closure_fast runs, called directly
 
 
 def _equilibrium_rows(V: np.ndarray, length: float) -> np.ndarray:
