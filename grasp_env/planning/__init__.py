@@ -1,7 +1,8 @@
 """The paper's three-phase grasp planner (section 3.2), one module per phase:
 
 * :mod:`~grasp_env.planning.preliftoff`: hand placements from which squeezing tips the
-  object toward the palm (the tippability regions, Fig. 4; the centred placement);
+  object toward the palm (the tippability regions, Fig. 4, also about the pivot of a
+  holding fingertip that cannot reach the support contact; the centred placement);
 * :mod:`~grasp_env.planning.lifting`: finger increments with the palm fixed until form
   closure off the support;
 * :mod:`~grasp_env.planning.grip`: descent of ``y*`` along the four-contact branches;
@@ -37,6 +38,8 @@ from grasp_env.planning.preliftoff import (
     centred_hand,
     centred_placement,
     close_until_touch,
+    pivot_arm,
+    pivot_placements,
     scoop_placement,
     squeeze_tips,
     tipping_placement,
@@ -63,6 +66,8 @@ __all__ = [
     "grip_curves",
     "lift",
     "palm_distance",
+    "pivot_arm",
+    "pivot_placements",
     "plan_grasp",
     "scoop_placement",
     "squeeze_tips",

@@ -1,6 +1,6 @@
-"""The whole plan: pre-liftoff placements in turn, lifting from each until one reaches
-form closure, exploratory lifting with palm motion as the last resort
-(:mod:`grasp_env.planning.regrasp`), then grip adjustment."""
+"""The whole plan: pre-liftoff placements in turn (the paper's, then the pivot-ranked ones of
+a dense grid), lifting from each until one reaches form closure, exploratory lifting with
+palm motion as the last resort (:mod:`grasp_env.planning.regrasp`), then grip adjustment."""
 
 from __future__ import annotations
 
@@ -30,6 +30,7 @@ from grasp_env.planning.plan import (
 from grasp_env.planning.preliftoff import (
     PALM_ANGLES,
     centred_placement,
+    pivot_placements,
     scoop_placement,
     squeeze_tips,
     tipping_placement,
@@ -54,8 +55,8 @@ def plan_grasp(
     """Run the three phases on a scene (a Scene, bundled name, path or dict).
 
     When lifting fails from every placement, :func:`explore` searches for a lift with palm
-    motion from the centred placement, within ``explore_moves`` simulated moves (0: not at
-    all)."""
+    motion from the states of the attempts at the paper's placements and from the centred
+    placement, within ``explore_moves`` simulated moves (0: not at all)."""
     t0 = time.process_time()
     sim = sim or Simulator(scene)
     plan = Plan()
@@ -84,6 +85,27 @@ def _placements(sim: Simulator, centred: State):
             yield centred, "centred"
 
 
+def _pivot_placements(sim: Simulator):
+    """The placements lifting tries when every one of :func:`_placements` gets stuck: the
+    best tipping placements of a dense grid, ranked by how readily they tip the object about
+    the pivot their holding finger makes (:func:`~grasp_env.planning.pivot_placements`)."""
+    for state, side, th in pivot_placements(sim):
+        yield state, f"tippability ({side} region, palm angle {th:+.1f}, pivot-ranked)"
+
+
+def _lift_from(sim: Simulator, placements, dq: float, tried: list) -> bool:
+    """Lifting from each placement in turn until one reaches form closure (the hand is
+    re-placed when stuck); every attempt is appended to ``tried`` as (placement, its state,
+    lifting from it). Returns whether one reached form closure."""
+    for start, placement in placements:
+        log.info("lifting from the %s placement", placement)
+        tried.append((placement, start, lift(sim, start, dq)))
+        log.info("  %s", tried[-1][2].message)
+        if tried[-1][2].status == "form_closure":
+            return True
+    return False
+
+
 def first_placement(sim: Simulator) -> tuple[State, str]:
     """The first pre-liftoff placement :func:`plan_grasp` tries, and its name: a hand set-up
     fitted to the object (palm pose and finger closing) from which squeezing tips it toward
@@ -103,17 +125,16 @@ def _plan(sim: Simulator, plan: Plan, dq: float, adjust: bool, explore_moves: in
         return
     centred = centred_placement(sim)
     tried: list[tuple[str, State, PhaseResult]] = []  # placement, its state, lifting from it
-    for start, placement in _placements(sim, centred):  # re-place the hand when stuck
-        log.info("lifting from the %s placement", placement)
-        tried.append((placement, start, lift(sim, start, dq)))
-        log.info("  %s", tried[-1][2].message)
-        if tried[-1][2].status == "form_closure":
-            break
+    lifted = _lift_from(sim, _placements(sim, centred), dq, tried)
+    # Exploration starts from these attempts only: more starts would change its seeded
+    # search wherever it runs, losing grasps as well as finding others.
+    seeds = tried[:]
+    lifted = lifted or _lift_from(sim, _pivot_placements(sim), dq, tried)
     why = _stuck_reason(sim, tried, (left, right))
-    if not (tried and tried[-1][2].status == "form_closure") and explore_moves > 0:
+    if not lifted and explore_moves > 0:
         log.info("exploratory lifting with palm motion (up to %d moves)", explore_moves)
-        leads = [_lead(start, phase) for _, start, phase in tried] + [([centred], [])]
-        names = [name for name, _, _ in tried] + ["centred"]
+        leads = [_lead(start, phase) for _, start, phase in seeds] + [([centred], [])]
+        names = [name for name, _, _ in seeds] + ["centred"]
         phase, _, k = explore(sim, leads, explore_moves)
         if phase.status == "form_closure":
             tried.append((f"{names[k]}, exploratory lifting", leads[k][0][0], phase))

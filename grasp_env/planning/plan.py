@@ -91,7 +91,8 @@ class Plan:
             why) or ``"error"``.
         message: a sentence on how the plan ended.
         placement: the pre-liftoff placement the plan starts from: ``"tippability (...)"``
-            (a fingertip at a support contact, Fig. 4), ``"scoop (...)"`` (both fingertips
+            (a fingertip at a support contact, Fig. 4; ``"pivot-ranked"`` from the dense grid
+            of :func:`grasp_env.planning.pivot_placements`), ``"scoop (...)"`` (both fingertips
             low at the support, :func:`grasp_env.planning.scoop_placement`) or ``"centred"``
             (the paper's fallback), followed by ``", exploratory lifting"`` where lifting
             needed palm motion.

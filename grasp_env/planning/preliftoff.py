@@ -6,6 +6,7 @@ fingers closed until they touch."""
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -14,7 +15,7 @@ from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
 from grasp_env.errors import ComputationError
 from grasp_env.mechanics import closure as mech
-from grasp_env.mechanics.tippability import tippability_regions
+from grasp_env.mechanics.tippability import TippabilityRegion, tippability_regions
 from grasp_env.planning.plan import touching_bodies
 from grasp_env.simulator import Simulator
 from grasp_env.solvers.motion_lp import motion_lp
@@ -36,6 +37,15 @@ PRELIFTOFF_STEP = 0.1
 #: palm parallel to the support first, then tilted ever more (a tilted palm reaches further
 #: under objects with parallel or undercut sides).
 PALM_ANGLES = (0.0, -0.2, 0.2, -0.4, 0.4, -0.6, 0.6)
+
+#: The dense grid of :func:`pivot_placements`, tried when lifting from every placement of
+#: the sparse one (``PALM_ANGLES``, 24 holding-finger angles) gets stuck: palm angles (rad)
+#: and holding-finger angles across its joint range.
+PIVOT_PALM_ANGLES = tuple(round(0.1 * k, 1) for k in range(-10, 11))
+PIVOT_HOLD_ANGLES = 96
+
+#: Placements of the dense grid lifting tries, at most (the best ranked).
+PIVOT_TRIES = 8
 
 
 def _first_touch(
@@ -69,25 +79,27 @@ def _first_touch(
     return h[2 + finger] + closing * turn
 
 
-def tipping_placement(
-    sim: Simulator, palm_angles=(0.0,), n_q: int = 24, sides=("right", "left")
-) -> tuple[State, str] | None:
-    """Pre-liftoff search for the paper's Fig. 4 placement.
+class _Candidate(NamedTuple):
+    """A Fig. 4 placement of the search grid (:func:`_tipping_candidates`)."""
 
-    For each tippability region (right: finger 2's tip at the right support contact, finger 1
-    in the right region; left: the mirror), each palm angle and each angle of the holding
-    finger, the holding fingertip is put on the support contact, the other finger closes until
-    it touches, and the placement is kept if that contact lies in the region, the hand is
-    clear of the support and the object, and the joints are within limits. Among the valid
-    placements the one whose contact has the largest moment arm about the support contact
-    (the easiest to tip) is returned, with the side; None if there is none. ``sides``
-    restricts the search to some regions.
-    """
+    state: State
+    side: str
+    palm_angle: float
+    arm: float  # moment arm of the pushing contact about the region's support contact
+
+
+def _tipping_candidates(sim: Simulator, palm_angles, n_q: int, sides):
+    """The Fig. 4 placements of a grid of palm angles and ``n_q`` holding-finger angles:
+    for each tippability region in ``sides`` (right: finger 2's tip at the right support
+    contact, finger 1 in the right region; left: the mirror), each palm angle and each angle
+    of the holding finger, the holding fingertip is put on the support contact (slid up the
+    object's side where the finger's body would enter the support), the other finger closes
+    until it touches, and the placement is kept if that contact lies in the region, the hand
+    is clear of the support and the object, and the joints are within limits."""
     scene = sim.scene
     q_obj = scene.object.start_pose.copy()
     left, right = tippability_regions(scene)
     tol = sim.tol
-    best = None
     for side, region in (("right", right), ("left", left)):
         if region.is_empty or side not in sides:
             continue
@@ -126,9 +138,72 @@ def tipping_placement(
                 if not touch or not all(region.contains(c.point, c.normal, 1e-7) for c in touch):
                     continue
                 arm = max(abs(float(geo.cross2(c.point - p_C, c.normal))) for c in touch)
-                if best is None or arm > best[0]:
-                    best = (arm, state, side)
-    return None if best is None else (best[1], best[2])
+                yield _Candidate(state, side, float(th), arm)
+
+
+def tipping_placement(
+    sim: Simulator, palm_angles=(0.0,), n_q: int = 24, sides=("right", "left")
+) -> tuple[State, str] | None:
+    """Pre-liftoff search for the paper's Fig. 4 placement (:func:`_tipping_candidates`).
+
+    Among the valid placements the one whose contact has the largest moment arm about the
+    support contact (the easiest to tip) is returned, with the side; None if there is none.
+    ``sides`` restricts the search to some regions.
+    """
+    best = max(_tipping_candidates(sim, palm_angles, n_q, sides), key=lambda c: c.arm, default=None)
+    return None if best is None else (best.state, best.side)
+
+
+def pivot_placements(
+    sim: Simulator,
+    palm_angles=PIVOT_PALM_ANGLES,
+    n_q: int = PIVOT_HOLD_ANGLES,
+    limit: int = PIVOT_TRIES,
+) -> list[tuple[State, str, float]]:
+    """The Fig. 4 placements of a dense grid that tip the object about the pivot their
+    holding finger actually makes (:func:`pivot_arm`), best first: at most ``limit``, each
+    with its side and palm angle.
+
+    Where the holding fingertip cannot reach the support contact (its body would enter the
+    support, so it sits higher up the object's side), which pushing contacts tip the object
+    depends on where that contact lies, not only on the paper's regions; the ranking favours
+    the placements the paper's criterion, applied to the real holding contact, says tip the
+    object most readily."""
+    left, right = tippability_regions(sim.scene)
+    regions = {"left": left, "right": right}
+    scored = [
+        (arm, c)
+        for c in _tipping_candidates(sim, palm_angles, n_q, ("right", "left"))
+        if (arm := pivot_arm(c.state, regions[c.side], 2 if c.side == "right" else 1)) > 0.0
+    ]
+    scored.sort(key=lambda ac: -ac[0])
+    return [(c.state, c.side, c.palm_angle) for _, c in scored[:limit]]
+
+
+def pivot_arm(state: State, region: TippabilityRegion, hold: int) -> float:
+    """Moment arm, in the sense that tips the object, of the pushing finger's contact forces
+    about the pivot of the holding finger ``hold`` (finger 2 for the right region).
+
+    With the far support contact broken, the object is held by the region's support contact
+    (a vertical normal) and the holding finger's contact; the only motion keeping both is a
+    turn about the point where their normal lines meet, the pivot. It lifts the far support
+    contact when the pushing force's moment about the pivot has the sense of the region's
+    tipping (clockwise for the right region): the paper's criterion (section 2.4) with the
+    support contact moved to the pivot, the same point when the holding tip sits at the
+    support contact. Per holding contact the largest pushing arm counts, and the smallest of
+    these over the holding contacts; ``-inf`` where a finger does not touch or the holding
+    contact cannot hold (its force does not push towards the far support contact)."""
+    sense = 1.0 if hold == 2 else -1.0  # right region: a clockwise (negative) moment tips
+    held = [c for c in state.contacts if c.body == f"finger{hold}"]
+    push = [c for c in state.contacts if c.body == f"finger{3 - hold}"]
+    if not held or not push or any(sense * c.normal[0] >= 0.0 for c in held):
+        return -math.inf
+    x_C = region.contact_W[0]
+    arms = []
+    for c in held:
+        pivot = c.point + (x_C - c.point[0]) / c.normal[0] * c.normal
+        arms.append(max(-sense * float(geo.cross2(f.point - pivot, f.normal)) for f in push))
+    return min(arms)
 
 
 def scoop_placement(sim: Simulator, palm_angle: float = 0.0) -> State | None:

@@ -325,3 +325,63 @@ def test_stuck_lifting_says_how_it_left_the_object():
     now = geo.transform(result.state.object_pose, sim.scene.object.vertices_B)[:, 1]
     before = sim.scene.object.vertices_W0[:, 1]
     assert np.any((np.abs(now) < 1e-9) & (before > 0.1))
+
+
+# A small triangle, apex up (heldout shape 47 of benchmarks.planner_shapes): the fingertips
+# 0.05 thick cannot reach its support contacts, and lifting from every placement of the
+# sparse grid wedges it.
+SMALL_TRIANGLE = [[-0.186, 0.0], [0.241, 0.0], [-0.055, 0.313]]
+
+
+def _held_twist_push(state, region, hold: int) -> float:
+    """Independent of :func:`planning.pivot_arm`: the object's twist (unit turn rate) that
+    keeps the region's support contact on the support and the holding finger's contact
+    closed, turning the way that lifts the far support contact; the power of the pushing
+    contacts' unit forces in it (largest over pushing contacts, least over holding ones)."""
+    o = state.object_pose[:2]
+    held = [c for c in state.contacts if c.body == f"finger{hold}"]
+    push = [c for c in state.contacts if c.body == f"finger{3 - hold}"]
+    base = state.scene.object.vertices_W0
+    base = base[base[:, 1] <= 1e-12, 0]
+    far = np.array([base.min() if hold == 2 else base.max(), 0.0])  # the other support contact
+
+    def vel(u, p):  # velocity of point p under twist u = (vx, vy, w) about o
+        return u[:2] + u[2] * np.array([-(p - o)[1], (p - o)[0]])
+
+    out = []
+    for h in held:
+        # rows: vertical velocity at the support contact, normal velocity at h (both zero)
+        rows = [
+            [0.0, 1.0, region.contact_W[0] - o[0]],
+            [h.normal[0], h.normal[1], geo.cross2(h.point - o, h.normal)],
+        ]
+        u = np.linalg.svd(np.array(rows))[2][-1]
+        u = u / abs(u[2])
+        if vel(u, far)[1] < 0:
+            u = -u  # the sense that lifts the far support contact
+        out.append(max(float(f.normal @ vel(u, f.point)) for f in push))
+    return min(out)
+
+
+def test_pivot_arm_is_the_power_of_the_push_in_the_held_motion():
+    scene = _scene_with_object(SMALL_TRIANGLE)
+    sim = grasp_env.Simulator(scene)
+    left, right = grasp_env.tippability_regions(scene)
+    found = planning.pivot_placements(sim)
+    assert found
+    arms = []
+    for state, side, _ in found:
+        region, hold = (right, 2) if side == "right" else (left, 1)
+        arm = planning.pivot_arm(state, region, hold)
+        assert arm > 0.0
+        assert arm == pytest.approx(_held_twist_push(state, region, hold), abs=1e-9)
+        arms.append(arm)
+    assert arms == sorted(arms, reverse=True)
+
+
+def test_pivot_ranked_placement_lifts_a_small_triangle():
+    scene = _scene_with_object(SMALL_TRIANGLE)
+    plan = planning.plan_grasp(scene, explore_moves=0)
+    assert plan.success, plan.message
+    assert plan.placement.endswith("pivot-ranked)")  # every placement before it got stuck
+    _check_grasp(plan.steps[-1].state)
