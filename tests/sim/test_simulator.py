@@ -41,6 +41,7 @@ from scipy.optimize import brentq, linprog
 import grasp_env
 from grasp_env import Simulator, State
 from grasp_env.sim.events import FALL_END, FALL_START
+from grasp_env.sim.step import false_position
 from grasp_env.simulator import WorkLimitError
 from grasp_env.testing import check_state, cross, hand_polygons_W, rot
 
@@ -903,6 +904,21 @@ def test_events_at_the_start_of_a_search_take_few_solves(pose, hand, fingers) ->
     np.testing.assert_array_equal(end.finger_angles, fingers)
     assert_invariants(end, sim.tol)
     assert sim.solves <= 160, sim.solves
+
+
+@pytest.mark.parametrize(
+    ("lo_value", "hi_value", "expected"),
+    [
+        (-0.6, 1.4, 0.5),  # a check linear in s, -0.6 at 0.2 and 1.4 at 1.2: zero at 0.5
+        (-1e-12, 1.0, 0.2 + 1e-3),  # kept a thousandth of the bracket from its ends
+        (-1.0, 1e-12, 1.2 - 1e-3),
+        (math.nan, 1.0, 0.7),  # a value not known: the midpoint
+        (-1.0, -0.5, 0.7),  # no bracket: the midpoint
+    ],
+)
+def test_false_position_step(lo_value: float, hi_value: float, expected: float) -> None:
+    """The next point of the event and fall-step searches on the bracket [0.2, 1.2]."""
+    assert false_position(0.2, 1.2, lo_value, hi_value) == pytest.approx(expected, abs=1e-15)
 
 
 @pytest.mark.parametrize("dq", CLOSING.values(), ids=CLOSING.keys())
