@@ -83,7 +83,8 @@ def test_zoo_trains_each_id_from_the_readme_command(env_id, tmp_path):
     model, norm, name, entry = tp.load_agent(run)
     assert name == f"{env_id}_1" and entry["env_id"] == env_id and norm is not None
     assert model.num_timesteps == 2048
-    assert entry["env_kwargs"] == {**ENV_KWARGS[env_id], "reward_grip_weight": 1.0}
+    raw = yaml.safe_load(CONFIG.read_text())[env_id]
+    assert entry["env_kwargs"] == {**ENV_KWARGS[env_id], **raw["env_kwargs"]}
     env = gym.make(env_id, **entry["env_kwargs"])
     obs, _ = env.reset(seed=0)
     for _ in range(3):
