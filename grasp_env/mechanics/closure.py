@@ -161,7 +161,8 @@ def is_form_closure(state: State) -> bool:
     (HiGHS) gives the same answer and, when there is one, the twist that escapes.
     """
     points, normals, _ = state.contact_arrays()
-    V = constraint_matrix(points, normals, state.object_pose)  # V_ob (the pose's x, y)
+    com = np.asarray(state.object_pose, dtype=float)  # V_ob reads its x and y
+    V = constraint_matrix(points, normals, com)
     V[:, 2] *= 1.0 / gyration_radius(state.scene)
     return velocity_lp.form_closure(V)  # what form_closure_fast runs, called directly
 
