@@ -515,6 +515,8 @@ def test_closure_analytic_cases(spec, form, force):
     state = _square_state(spec)
     assert grasp_env.is_form_closure(state) is form
     assert grasp_env.is_force_closure(state) is force
+    listed = replace(state, object_pose=state.object_pose.tolist())  # a hand-made State
+    assert grasp_env.is_form_closure(listed) is form
     u = grasp_env.escape_direction(state)
     if form:
         assert u is None
