@@ -84,6 +84,7 @@ class _Candidate(NamedTuple):
 
     state: State
     side: str
+    region: TippabilityRegion  # the side's tippability region
     palm_angle: float
     arm: float  # moment arm of the pushing contact about the region's support contact
 
@@ -138,7 +139,7 @@ def _tipping_candidates(sim: Simulator, palm_angles, n_q: int, sides):
                 if not touch or not all(region.contains(c.point, c.normal, 1e-7) for c in touch):
                     continue
                 arm = max(abs(float(geo.cross2(c.point - p_C, c.normal))) for c in touch)
-                yield _Candidate(state, side, float(th), arm)
+                yield _Candidate(state, side, region, float(th), arm)
 
 
 def tipping_placement(
@@ -169,12 +170,10 @@ def pivot_placements(
     depends on where that contact lies, not only on the paper's regions; the ranking favours
     the placements the paper's criterion, applied to the real holding contact, says tip the
     object most readily."""
-    left, right = tippability_regions(sim.scene)
-    regions = {"left": left, "right": right}
     scored = [
         (arm, c)
         for c in _tipping_candidates(sim, palm_angles, n_q, ("right", "left"))
-        if (arm := pivot_arm(c.state, regions[c.side], 2 if c.side == "right" else 1)) > 0.0
+        if (arm := pivot_arm(c.state, c.region, 2 if c.side == "right" else 1)) > 0.0
     ]
     scored.sort(key=lambda ac: -ac[0])
     return [(c.state, c.side, c.palm_angle) for _, c in scored[:limit]]
