@@ -55,16 +55,28 @@ def transform(pose: np.ndarray, points_B: np.ndarray) -> np.ndarray:
     return rotate(points_B, pose[2]) + pose[:2]
 
 
+def following(a: np.ndarray) -> np.ndarray:
+    """``a`` with its first row moved to the end, so that row ``k`` is the one after ``k``
+    cyclically (for polygon vertices, the next vertex): ``np.roll(a, -1, axis=0)`` without
+    its overhead, which dominated building a scene."""
+    return np.concatenate((a[1:], a[:1]))
+
+
+def edge_vectors(vertices: np.ndarray) -> np.ndarray:
+    """``v_{k+1} - v_k`` for every edge of a closed polygon, shape (n, 2)."""
+    return following(vertices) - vertices
+
+
 def polygon_area(vertices: np.ndarray) -> float:
     """Signed area (positive for counter-clockwise vertices)."""
     x, y = vertices[:, 0], vertices[:, 1]
-    return 0.5 * float((x * np.roll(y, -1)).sum() - (np.roll(x, -1) * y).sum())
+    return 0.5 * float((x * following(y)).sum() - (following(x) * y).sum())
 
 
 def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
     """Centroid of a simple polygon of uniform density, shape (2,)."""
     x, y = vertices[:, 0], vertices[:, 1]
-    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    xn, yn = following(x), following(y)
     a = x * yn - xn * y
     area = 0.5 * a.sum()
     return np.array([((x + xn) * a).sum(), ((y + yn) * a).sum()]) / (6.0 * area)
@@ -73,7 +85,7 @@ def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
 def polygon_inertia(vertices_B: np.ndarray, mass: float) -> float:
     """Moment of inertia about the frame origin (the centroid) of a uniform polygon of ``mass``."""
     x, y = vertices_B[:, 0], vertices_B[:, 1]
-    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    xn, yn = following(x), following(y)
     a = x * yn - xn * y
     area = 0.5 * a.sum()
     j = (a * (x * x + x * xn + xn * xn + y * y + y * yn + yn * yn)).sum() / 12.0
@@ -82,8 +94,7 @@ def polygon_inertia(vertices_B: np.ndarray, mass: float) -> float:
 
 def edge_normals(vertices: np.ndarray) -> np.ndarray:
     """Outward unit normals of the edges ``v_k -> v_{k+1}`` of a CCW polygon, shape (n, 2)."""
-    d = np.roll(vertices, -1, axis=0) - vertices
-    n = np.stack([d[:, 1], -d[:, 0]], axis=1)
+    n = edge_vectors(vertices)[:, ::-1] * (1.0, -1.0)  # (d_y, -d_x)
     return n / norms(n)[:, None]
 
 
@@ -145,17 +156,17 @@ def _dot2(a: np.ndarray, b: np.ndarray) -> float:
 
 def is_convex_ccw(vertices: np.ndarray, tol: float = 1e-12) -> bool:
     """True when the polygon is strictly convex with counter-clockwise vertices."""
-    d = np.roll(vertices, -1, axis=0) - vertices
-    turn = cross2(d, np.roll(d, -1, axis=0))
-    scale = norms(d) * norms(np.roll(d, -1, axis=0))
+    d = edge_vectors(vertices)
+    turn = cross2(d, following(d))
+    scale = norms(d) * norms(following(d))
     return bool(np.all(turn > tol * scale)) and polygon_area(vertices) > 0
 
 
 def turns_once(vertices: np.ndarray) -> bool:
     """True when the exterior angles sum to 2 pi: a convex CCW polygon that winds only once
     (rules out star polygons whose every turn is to the left)."""
-    d = np.roll(vertices, -1, axis=0) - vertices
-    ang = np.arctan2(cross2(d, np.roll(d, -1, axis=0)), (d * np.roll(d, -1, axis=0)).sum(axis=1))
+    d = edge_vectors(vertices)
+    ang = np.arctan2(cross2(d, following(d)), (d * following(d)).sum(axis=1))
     return bool(abs(ang.sum() - 2 * math.pi) < 1e-6)
 
 
@@ -191,7 +202,7 @@ def turn_to_contact(a: np.ndarray, centre: np.ndarray, b: np.ndarray, ccw: bool 
     for moving, fixed, sign in ((a, b, 1.0), (b, a, -1.0)):
         p = moving - centre  # (m, 2) vertices about the centre
         e0 = fixed - centre  # edges e0[k] -> e1[k]
-        d = np.roll(e0, -1, axis=0) - e0
+        d = edge_vectors(e0)
         # |e0 + t d|^2 = |p|^2 for every vertex and edge: a t^2 + 2 b t + c = 0
         qa = (d * d).sum(axis=1)[None, :]
         qb = (e0 * d).sum(axis=1)[None, :]

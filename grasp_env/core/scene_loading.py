@@ -193,7 +193,7 @@ def _object(d: Any, width: float) -> ObjectSpec:
         raise SceneError(f"object.vertices must be a list of at least 3 [x, y] points, got {raw!r}")
     v = np.array([_vector(p, f"object.vertices[{i}]", 2) for i, p in enumerate(raw)])
     _coordinates(v, "object.vertices", width)
-    edge = geo.norms(np.roll(v, -1, axis=0) - v)
+    edge = geo.norms(geo.edge_vectors(v))
     scale = float(np.ptp(v, axis=0).max())
     for i in np.flatnonzero(edge <= 1e-9 * max(scale, 1e-300)):
         j = (i + 1) % len(v)
@@ -247,7 +247,7 @@ def _check_edges(scene: Scene) -> None:
     """Refuse object edges shorter than ``MIN_EDGE_TOLS`` contact tolerances."""
     tol = DEFAULT_CONTACT_TOL * scene.palm.width
     v = scene.object.vertices_W0
-    edge = geo.norms(np.roll(v, -1, axis=0) - v)
+    edge = geo.norms(geo.edge_vectors(v))
     i = int(np.argmin(edge))
     if edge[i] < MIN_EDGE_TOLS * tol:
         j = (i + 1) % len(v)

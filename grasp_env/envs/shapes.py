@@ -75,7 +75,7 @@ def random_convex_polygon(
     ratio = rng.uniform(aspect[0], aspect[1])
     v = np.stack([np.cos(angles), ratio * np.sin(angles)], axis=1)
     c = geo.polygon_centroid(v)
-    d = np.roll(v, -1, axis=0) - v
+    d = geo.edge_vectors(v)
     length = geo.norms(d)
     t = ((c - v) * d).sum(axis=1) / length**2  # centroid's projection along each edge
     margin = np.minimum(t, 1.0 - t)

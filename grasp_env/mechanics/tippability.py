@@ -217,7 +217,7 @@ class TippabilityRegion:
             phi = math.atan2(n_W[1], n_W[0])
             return any(s.vertex == k and _in_arc(phi, s, tol) for s in self.vertices)
 
-        d = np.roll(v, -1, axis=0) - v
+        d = geo.edge_vectors(v)
         length = np.hypot(d[:, 0], d[:, 1])
         t = np.clip(np.sum((p_W - v) * d, axis=1) / length**2, 0.0, 1.0)
         gap = np.hypot(*(v + t[:, None] * d - p_W).T)
@@ -305,7 +305,7 @@ def _region(v: np.ndarray, side: Side, tol: float) -> TippabilityRegion:
     p_WC = p_WR if side == "right" else p_WL
     n_edges = len(v)
     n_W = _inward_normals(v)
-    d = np.roll(v, -1, axis=0) - v
+    d = geo.edge_vectors(v)
     length = np.hypot(d[:, 0], d[:, 1])
     tol_len = tol * _size(v)
     # Edges with both ends on the support (the supporting edge; one edge for a strictly

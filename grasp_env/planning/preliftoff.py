@@ -264,7 +264,7 @@ def scoop_placement(sim: Simulator, palm_angle: float = 0.0) -> State | None:
 def _extent_above(vertices: np.ndarray, y: float) -> tuple[float, float]:
     """Least and greatest x of the part of a convex polygon at heights >= ``y``."""
     xs = list(vertices[vertices[:, 1] >= y, 0])
-    for a, b in zip(vertices, np.roll(vertices, -1, axis=0), strict=True):
+    for a, b in zip(vertices, geo.following(vertices), strict=True):
         if (a[1] - y) * (b[1] - y) < 0:  # the edge crosses the height y
             xs.append(a[0] + (y - a[1]) / (b[1] - a[1]) * (b[0] - a[0]))
     if not xs:
