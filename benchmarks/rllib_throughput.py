@@ -68,7 +68,7 @@ def run(
     from agents.train_ppo import get_entry as sb3_entry
     from agents.train_ppo import load_config as sb3_config
     from agents.train_rllib import get_entry, load_config, start_ray
-    from benchmarks.ppo_throughput import steps_per_second
+    from benchmarks.ppo_throughput import steps_per_second, warmed_model
 
     headless()
     torch.set_num_threads(1)
@@ -79,7 +79,9 @@ def run(
     steps = iterations * batch
     rows, baseline = [], None
     for vec_env in VEC_ENVS:
-        rate = steps_per_second(sb3, steps, vec_env)
+        model = warmed_model(sb3, vec_env)
+        rate = steps_per_second(model, steps)
+        model.get_env().close()
         baseline = baseline or rate
         load = os.getloadavg()[0]
         print(f"stable-baselines3 {vec_env}: {rate:.0f} env steps/s (load {load:.1f})")

@@ -21,6 +21,7 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 
+import grasp_env
 from agents import evaluate as ev
 from agents import train_ppo as tp
 from grasp_env.envs import ENV_ID, ENV_KWARGS, LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
@@ -58,9 +59,11 @@ def test_config_is_keyed_by_the_registered_ids():
     for entry in config.values():
         assert all(key.startswith("reward_") for key in entry["env_kwargs"])
     assert set(config[ENV_ID]["env_kwargs"]) == {"reward_grip_weight"}
-    ((wrapper, kwargs),) = tp.wrapper_specs(config[RANDOM_SHAPES_ENV_ID])
-    assert wrapper is tp.ApproachShaping and kwargs["touch"] == 0.2
-    assert not tp.wrapper_specs(config[ENV_ID])
+    (shaping, kwargs), (last, _) = tp.wrapper_specs(config[RANDOM_SHAPES_ENV_ID])
+    assert shaping is tp.ApproachShaping and kwargs["touch"] == 0.2
+    assert last is tp.TrainingInfo  # outermost, so that the shaping sees the whole info
+    for entry in config.values():
+        assert [cls for cls, _ in tp.wrapper_specs(entry)][-1] is tp.TrainingInfo
     # Former config names still find their entries (benchmarks.ppo_throughput uses them).
     assert tp.get_entry(config, "fig13_fingers") is config[ENV_ID]
     assert tp.get_entry(config, "random_shapes_palm") is config[RANDOM_SHAPES_ENV_ID]
@@ -413,7 +416,7 @@ def test_bootstrap_interval_brackets_the_mean():
 
 def test_approach_shaping_is_potential_based():
     entry = tp.get_entry(tp.load_config(CONFIG), RANDOM_SHAPES_ENV_ID)
-    ((cls, kwargs),) = tp.wrapper_specs(entry)
+    (cls, kwargs), _ = tp.wrapper_specs(entry)
     env = cls(gym.make(entry["env_id"], **entry["env_kwargs"]), **kwargs)
 
     def potential(obs, info):  # independent of the wrapper's: palm-frame distance, contacts
@@ -429,6 +432,30 @@ def test_approach_shaping_is_potential_based():
         rest = sum(new_info[f"reward_{t}"] for t in tp.REWARD_TERMS)
         assert reward == pytest.approx(rest + expected, abs=1e-9)
         obs, info = new, new_info
+
+
+def test_training_info_keeps_what_training_reads():
+    """The same episode with and without the wrapper: the same observations and rewards, and
+    of each info exactly ``is_success``, the reward terms and ``sim_error``, unchanged."""
+    entry = tp.get_entry(tp.load_config(CONFIG), RANDOM_SHAPES_ENV_ID)
+    make = [lambda: gym.make(entry["env_id"], **entry["env_kwargs"])] * 2
+    full, kept = make[0](), tp.TrainingInfo(make[1]())
+    full.reset(seed=5), kept.reset(seed=5)
+    actions = np.random.default_rng(0).uniform(-1, 1, (30, 5)).astype(np.float32)
+    for action in actions:
+        *out, info = full.step(action)
+        *out_kept, info_kept = kept.step(action)
+        assert np.array_equal(out[0], out_kept[0]) and out[1:] == out_kept[1:]
+        expected = {k: v for k, v in info.items() if k.startswith("reward_")}
+        expected["is_success"] = info["is_success"]
+        assert info_kept == expected
+    # a step that ends in a simulator error passes its message on
+    kept.unwrapped._sim._move = lambda *args: (_ for _ in ()).throw(
+        grasp_env.SimulationError("test")
+    )
+    *_, terminated, _, info_kept = kept.step(actions[0])
+    assert terminated and info_kept["sim_error"] == "SimulationError: test"
+    assert set(info_kept) == {"is_success", "sim_error", *(f"reward_{t}" for t in tp.REWARD_TERMS)}
 
 
 def test_learning_curves_of_a_run(trained, tmp_path, capsys):
