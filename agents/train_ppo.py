@@ -461,21 +461,21 @@ def _timed(callback) -> list[float]:
 
 # ---------------------------------------------------------------------- envs without the zoo
 class EpisodeTerms(gym.Wrapper):
-    """Adds ``ep_reward_<term>``, each reward term summed over the episode, to every info."""
+    """Adds ``ep_reward_<term>``, each reward term summed over the episode, to the info of
+    the episode's last step, where ``Monitor`` reads it (only there: vector envs copy every
+    info at every step)."""
 
     def reset(self, **kwargs):
         self._sums = dict.fromkeys(REWARD_TERMS, 0.0)
-        obs, info = self.env.reset(**kwargs)
-        return obs, {**info, **self._episode_sums()}
+        return self.env.reset(**kwargs)
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         for term in REWARD_TERMS:
             self._sums[term] += info[f"reward_{term}"]
-        return obs, reward, terminated, truncated, {**info, **self._episode_sums()}
-
-    def _episode_sums(self) -> dict[str, float]:
-        return {f"ep_reward_{t}": v for t, v in self._sums.items()}
+        if terminated or truncated:
+            info = {**info, **{f"ep_reward_{t}": v for t, v in self._sums.items()}}
+        return obs, reward, terminated, truncated, info
 
 
 def make_env(

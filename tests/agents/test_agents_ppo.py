@@ -458,6 +458,24 @@ def test_training_info_keeps_what_training_reads():
     assert set(info_kept) == {"is_success", "sim_error", *(f"reward_{t}" for t in tp.REWARD_TERMS)}
 
 
+def test_monitor_records_the_episode_sums_of_the_reward_terms(tmp_path):
+    """``make_env`` (benchmarks, checks): the Monitor CSV row of an episode holds each reward
+    term summed over its steps, added to the last step's info only."""
+    env = tp.make_env(ENV_ID, {"max_episode_steps": 5}, str(tmp_path / "m"))
+    env.reset(seed=0)
+    sums = dict.fromkeys(tp.REWARD_TERMS, 0.0)
+    for k in range(5):
+        *_, terminated, truncated, info = env.step(np.array([1.0, 1.0], np.float32))
+        for t in tp.REWARD_TERMS:
+            sums[t] += info[f"reward_{t}"]
+        assert ("ep_reward_lift" in info) == (terminated or truncated) == (k == 4)
+    env.close()
+    with open(tmp_path / "m.monitor.csv") as f:
+        (row,) = csv.DictReader(line for line in f if not line.startswith("#"))
+    for t in tp.REWARD_TERMS:
+        assert float(row[f"ep_reward_{t}"]) == pytest.approx(sums[t], abs=1e-5)
+
+
 def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     """The tiny run's checkpoints (every 128 steps) played on validation shapes, and its
     training episodes binned; a folder without checkpoints is refused by name."""
