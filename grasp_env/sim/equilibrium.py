@@ -6,6 +6,8 @@ Forces are in units of the object's weight ``W`` and moments in ``W`` times the 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -19,6 +21,10 @@ from grasp_env.solvers.velocity_lp import OPTIMAL
 
 #: Largest contact force, in object weights, that counts as holding the object.
 MAX_FORCE = 1e6
+#: Residual of an equilibrium that is rounding, relative to the size of the forces' terms
+#: (``|V^T| lam``): at a fold the forces that hold the object grow without bound, and their
+#: rounding alone leaves a residual above any fixed tolerance.
+ROUNDING = 16.0 * dense.EPS
 
 
 @njit(cache=CACHE)
@@ -30,21 +36,35 @@ def wrench_rows(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> 
 
 @njit(cache=CACHE)
 def held(
-    model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, max_force: float
-) -> bool:
+    model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, max_force: float,
+    rounding: float,
+) -> bool:  # fmt: skip
     """True when the contacts ``keys`` hold the object against gravity: non-negative forces
-    balance it to ``ftol``, none beyond ``max_force`` weights (a wedge between faces parallel
-    to rounding would need them, and in double precision they no longer balance). At a
-    vertex-vertex touch the object may move along either candidate's edge: it is held only
-    if every choice of candidates holds it."""
+    balance it to ``ftol`` plus ``rounding`` times the size of their terms (0, or
+    :data:`ROUNDING` where forces without bound count), none beyond ``max_force`` weights (a
+    wedge between faces parallel to rounding would need them, and in double precision they
+    no longer balance). At a vertex-vertex touch the object may move along either
+    candidate's edge: it is held only if every choice of candidates holds it."""
     if keys.shape[0] == 0:
         return False
     for choice in contact_sets.choices(model, world, keys):
-        V = wrench_rows(model, world, com, choice)
-        lam, res = dense.nnls(V.T.copy(), model.gravity)
-        if res > ftol or lam.max() > max_force * model.weight:
+        W = wrench_rows(model, world, com, choice).T.copy()
+        lam, res = dense.nnls(W, model.gravity)
+        if res > ftol + rounding * _term_size(W, lam) or lam.max() > max_force * model.weight:
             return False
     return True
+
+
+@njit(cache=CACHE)
+def _term_size(W: np.ndarray, lam: np.ndarray) -> float:
+    """``| |W| lam |``: the size of the terms summed in ``W lam``, which sets its rounding."""
+    total = 0.0
+    for i in range(W.shape[0]):
+        row = 0.0
+        for j in range(W.shape[1]):
+            row += abs(W[i, j]) * lam[j]
+        total += row * row
+    return math.sqrt(total)
 
 
 @njit(cache=CACHE)

@@ -46,7 +46,7 @@ def held_here(model, q: np.ndarray, h: np.ndarray, ftol: float) -> bool:
     """Whether the contacts touching at ``(q, h)`` hold the object, to ``ftol``."""
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
-    return held(model, world, q[:2], keys, ftol, MAX_FORCE)
+    return held(model, world, q[:2], keys, ftol, MAX_FORCE, 0.0)
 
 
 @njit(cache=CACHE)
@@ -189,7 +189,7 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
         keys = touching(model, world, contact_sets.empty())
         # Held only to rounding: near the boundary of equilibrium a residual within the usual
         # tolerance still leaves a way down, which the descent below finds.
-        if held(model, world, q[:2], keys, 1e-12 * model.weight, MAX_FORCE):
+        if held(model, world, q[:2], keys, 1e-12 * model.weight, MAX_FORCE, 0.0):
             events.append((FALL_END, s, keys))
             return q, moved
         q_rest, found = cradle(model, q, h, keys, solves)

@@ -31,7 +31,7 @@ from numba import njit
 from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import contact_sets, motion
-from grasp_env.sim.equilibrium import determined, held
+from grasp_env.sim.equilibrium import ROUNDING, determined, held
 from grasp_env.sim.events import (
     EDGE_TO_TIP,
     JAM,
@@ -323,8 +323,9 @@ def _event_here(model, ms, event, event_keys, E, v, overridden, h0, dh, s_end, e
 @njit(cache=CACHE)
 def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
     """The hand stops at a jam; the object must be held there (at a fold by forces without
-    bound). A jam whose object is neither held nor able to fall is a failure, not a state."""
+    bound, balanced to their rounding). A jam whose object is neither held nor able to fall
+    is a failure, not a state."""
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
-    if not held(model, world, q[:2], keys, model.ftol, np.inf):
+    if not held(model, world, q[:2], keys, model.ftol, np.inf, ROUNDING):
         raise SimulationError("jam at s =", s, "with the object neither held nor falling")

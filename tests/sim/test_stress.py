@@ -331,6 +331,29 @@ def test_regression_jam_after_lost_contact_is_held() -> None:
     run_env(scene, "random", UNHELD_ACTIONS, seed=83305122)
 
 
+def test_regression_jam_at_a_fold_is_held() -> None:
+    """fig13 at the ``"preliftoff"`` start, 2,641 random steps in (env seed 1, action space
+    seed 0): closing finger 1 while opening finger 2 wedges the object between both
+    fingertips and a support vertex, whose normals nearly meet in one point. The forces that
+    hold it are about 1e7 weights, and their rounding alone left a residual of 6.6e-9 weights
+    where the jam's test allowed 1.6e-9: the move failed ("jam ... with the object neither
+    held nor falling"), again on the reference path. The object is held there, as the
+    independent check confirms."""
+    scene = grasp_env.load_scene("fig13")
+    sim = Simulator(scene)
+    hand = np.array([0.014953080375357005, 0.71, 0.0, -1.569819423096805, -2.5485486958336985])
+    start = sim.settle(
+        np.array([-0.26986157283939066, 0.22295670322573363, 1.025141272267905]), hand
+    )
+    assert_valid(scene, start.object_pose, start.hand, start.contacts, tol_of(scene), "start")
+    step = 0.05 * np.array([0.7128958106040955, 0.3872475326061249])  # the env's action
+    state = sim.move_hand(start, fingers=(hand[3] + step[0], hand[4] + step[1]))
+    assert state.jammed and state.events[-1].kind == "jam"
+    assert sorted(c.body for c in state.contacts) == ["finger1", "finger2", "support"]
+    assert min(c.force for c in state.contacts) > 1e6 * scene.object_weight  # a fold
+    assert_valid(scene, state.object_pose, state.hand, state.contacts, tol_of(scene), "jam")
+
+
 @pytest.mark.slow
 def test_regression_soak_seed2_shape135() -> None:
     """Soak seed 2, shape 135 (a sliver, 0.04 thick, ``"preliftoff"`` start, random
