@@ -42,6 +42,7 @@ from grasp_env.envs.observation import (
     PALM_Y_MAX,
     REACH,
     contact_positions,
+    finish_observation,
     in_palm_frame,
     observation_bounds,
 )
@@ -712,18 +713,9 @@ class FrictionlessGraspEnv(gym.Env):
         state, an = self._state, self._analysis
         scene = state.scene
         w, weight = scene.palm.width, scene.object_weight
-        x0 = scene.object.start_pose[0]
-        x_p, y_p, th_p, q1, q2 = state.hand.tolist()
-        x_o, y_o, th_o = state.object_pose.tolist()
-        p_P = an.in_palm_frame
-        grip = an.grip / weight if an.form_closure else GRIP_MAX
         obs = self._obs_buffer  # the object's padded vertices and mask are set at reset
-        obs[:13] = (
-            (x_p - x0) / w, y_p / w, th_p, q1, q2,
-            (x_o - x0) / w, y_o / w, math.sin(th_o), math.cos(th_o),
-            p_P[0] / w, p_P[1] / w, math.sin(p_P[2]), math.cos(p_P[2]),
-        )  # fmt: skip
         if an.contact_obs is None:  # new contacts (else the buffer holds them already)
+            grip = an.grip / weight if an.form_closure else GRIP_MAX
             contacts = [0.0] * (2 * len(BODIES))
             for c in state.contacts:
                 k = BODY_INDEX[c.body]
@@ -732,7 +724,7 @@ class FrictionlessGraspEnv(gym.Env):
             contacts += (
                 float(an.form_closure),
                 grip if math.isfinite(grip) else GRIP_MAX,
-                (y_o - self._y0) / w,
+                (float(state.object_pose[1]) - self._y0) / w,
             )
             if self.hand_features:
                 contacts += contact_positions(state)
@@ -748,8 +740,11 @@ class FrictionlessGraspEnv(gym.Env):
             )  # fmt: skip
             features /= w
             obs[self._hand_at :] = features
-        clipped = np.maximum(obs, self._obs_low)
-        return np.minimum(clipped, self._obs_high, out=clipped)
+        x0 = scene.object.start_pose[0]
+        return finish_observation(
+            obs, state.hand, state.object_pose, an.in_palm_frame, x0, w, self._obs_low,
+            self._obs_high,
+        )  # fmt: skip
 
     def _object_obs(self, scene: Scene) -> None:
         """The observation's per-episode part: the object's vertices (body frame, in palm

@@ -6,7 +6,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
+from grasp_env.compiled import CACHE
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
@@ -40,6 +42,39 @@ def in_palm_frame(state: State) -> tuple[float, float, float]:
     dx, dy = x_o - x_p, y_o - y_p
     c, s = math.cos(th_p), math.sin(th_p)
     return (c * dx + s * dy, -s * dx + c * dy, th_o - th_p)
+
+
+@njit(cache=CACHE)
+def finish_observation(
+    obs: np.ndarray, hand: np.ndarray, pose: np.ndarray, in_palm: tuple, x0: float, w: float,
+    low: np.ndarray, high: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """Write the observation's pose entries (0-12: the hand, the object's pose, the object in
+    the palm frame ``in_palm``, lengths in palm widths ``w`` about ``x0``) into ``obs``, and
+    return a copy of ``obs`` clipped into ``[low, high]``. Compiled: done by numpy and Python
+    floats, this was a tenth of a step."""
+    obs[0] = (hand[0] - x0) / w
+    obs[1] = hand[1] / w
+    obs[2] = hand[2]
+    obs[3] = hand[3]
+    obs[4] = hand[4]
+    obs[5] = (pose[0] - x0) / w
+    obs[6] = pose[1] / w
+    obs[7] = math.sin(pose[2])
+    obs[8] = math.cos(pose[2])
+    obs[9] = in_palm[0] / w
+    obs[10] = in_palm[1] / w
+    obs[11] = math.sin(in_palm[2])
+    obs[12] = math.cos(in_palm[2])
+    out = np.empty_like(obs)
+    for i in range(obs.shape[0]):
+        value = obs[i]
+        if value < low[i]:
+            value = low[i]
+        if value > high[i]:
+            value = high[i]
+        out[i] = value
+    return out
 
 
 def contact_positions(state: State) -> tuple[float, float, float]:
