@@ -4,7 +4,9 @@ and :mod:`grasp_env.sim`, whose functions call each other across modules and pac
 The same source runs interpreted under ``NUMBA_DISABLE_JIT=1``, which is how to debug it.
 Compiled code is cached on disk (numba's ``cache=True``) where a cache folder can be written
 (:data:`CACHE`); elsewhere (a read-only install with no writable home or
-``NUMBA_CACHE_DIR``) it is compiled in memory in each process.
+``NUMBA_CACHE_DIR``) it is compiled in memory in each process. A compiled function elsewhere
+that calls none of these (the observation's :func:`grasp_env.envs.observation.finish_observation`)
+is cached the same way, and numba checks it against its own file alone.
 """
 
 from __future__ import annotations
