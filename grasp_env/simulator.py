@@ -39,6 +39,7 @@ from grasp_env.core.state import (
     State,
     contacts_from_arrays,
     keep_contact_arrays,
+    new_state,
 )
 from grasp_env.errors import ComputationError, SimulationError, WorkLimitError
 from grasp_env.mechanics import closure as mech
@@ -308,7 +309,7 @@ class Simulator:
 
     def _new_state(self, q, h, contacts, keys, events, jammed, blocked) -> State:
         """The State, remembered with its contact keys for the next move from it."""
-        state = State(self.scene, q, h, contacts, jammed, blocked, tuple(events))
+        state = new_state(self.scene, q, h, contacts, jammed, blocked, tuple(events))
         self._last = (state, keys)
         return state
 

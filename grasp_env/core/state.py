@@ -165,6 +165,26 @@ class State:
         return pts.copy(), nrm.copy(), bodies.copy()
 
 
+def new_state(
+    scene: Scene,
+    object_pose: np.ndarray,
+    hand: np.ndarray,
+    contacts: tuple[Contact, ...],
+    jammed: bool,
+    hand_blocked: bool,
+    events: tuple[Event, ...],
+) -> State:
+    """``State(scene, object_pose, hand, contacts, jammed, hand_blocked, events)``, filled in
+    directly (as :func:`contacts_from_arrays` fills in contacts): the simulator makes one at
+    every move."""
+    state = _new_object(State)
+    state.__dict__.update(
+        scene=scene, object_pose=object_pose, hand=hand, contacts=contacts, jammed=jammed,
+        hand_blocked=hand_blocked, events=events,
+    )  # fmt: skip
+    return state
+
+
 def contacts_from_arrays(
     keys: list, points: np.ndarray, normals: np.ndarray, forces: list, gaps: list
 ) -> tuple[Contact, ...]:

@@ -658,6 +658,32 @@ def test_contact_arrays_are_the_contacts() -> None:
     assert bodies.shape == (1,)
 
 
+def test_simulator_states_are_the_constructors() -> None:
+    """The simulator fills its states in directly (``new_state``); each is the State the
+    constructor makes from its fields: equal field by field, frozen, copied by
+    ``dataclasses.replace``, pickled and compared as one."""
+    import dataclasses
+    import pickle
+
+    sim = Simulator(scene_of("fig13"))
+    state = sim.reset()
+    for dq in (0.3, 0.3, 0.3, 0.2):
+        state = sim.move_hand(state, fingers=state.finger_angles + np.array([dq, -dq]))
+        names = [f.name for f in dataclasses.fields(State) if f.init]
+        made = State(**{name: getattr(state, name) for name in names})
+        assert set(vars(made)) == set(vars(state)) - {"_arrays"}  # kept contact arrays
+        for name in names:
+            assert getattr(made, name) is getattr(state, name)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            state.jammed = True
+        copied = dataclasses.replace(state)
+        assert copied.contacts is state.contacts and copied._arrays is None
+        again = pickle.loads(pickle.dumps(state))
+        np.testing.assert_array_equal(again.object_pose, state.object_pose)
+        assert [c.key for c in again.contacts] == [c.key for c in state.contacts]
+        assert repr(made) == repr(state)
+
+
 def test_one_move_equals_ten_without_events() -> None:
     """Inside phase A of the tipping block (no event between), one move and ten equal moves
     end in the same state, and both on the closed form."""
