@@ -326,20 +326,27 @@ class ApproachShaping(gym.Wrapper):
 
 class TrainingInfo(gym.Wrapper):
     """Keeps of each step's info only what training reads: ``is_success``, the reward terms
-    (``reward_*``, shaping terms of inner wrappers included) and ``sim_error`` when there is
-    one. SB3's vector envs copy every info at every step (DummyVecEnv deep-copies them,
-    SubprocVecEnv pickles them); the env's whole info (poses, contacts with their points and
-    normals, events) made that copy about a fifth of PPO's time. Training only: evaluation
-    and the policies' own envs see the whole info. Named last in ``env_wrapper`` in
-    ``configs/ppo.yml``, so that the wrappers inside it still see everything."""
+    (``reward_*``, shaping terms of inner wrappers included), and where present ``sim_error``
+    and ``Monitor``'s ``episode`` (the zoo puts ``env_wrapper`` outside the Monitor; SB3's
+    episode statistics and its evaluation count episodes by it). SB3's vector envs copy every
+    info at every step (DummyVecEnv deep-copies them, SubprocVecEnv pickles them); the env's
+    whole info (poses, contacts with their points and normals, events) made that copy about a
+    fifth of PPO's time. Training only: the evaluation commands and the policies' own envs
+    see the whole info. Named last in ``env_wrapper`` in ``configs/ppo.yml``, so that the
+    wrappers inside it still see everything."""
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         kept = {key: value for key, value in info.items() if key.startswith("reward_")}
         kept["is_success"] = info["is_success"]
-        if "sim_error" in info:
-            kept["sim_error"] = info["sim_error"]
+        for key in _PASSED_ON:
+            if key in info:
+                kept[key] = info[key]
         return obs, reward, terminated, truncated, kept
+
+
+#: Info keys :class:`TrainingInfo` passes on where a step has them.
+_PASSED_ON = ("sim_error", "episode")
 
 
 @functools.cache

@@ -458,6 +458,22 @@ def test_training_info_keeps_what_training_reads():
     assert set(info_kept) == {"is_success", "sim_error", *(f"reward_{t}" for t in tp.REWARD_TERMS)}
 
 
+def test_training_info_passes_on_the_monitors_episode():
+    """As the zoo wraps (``env_wrapper`` outside the Monitor): the episode's last info keeps
+    the Monitor's ``episode`` record, by which SB3 counts episodes (its evaluation would
+    otherwise never end) and logs their returns."""
+    from stable_baselines3.common.monitor import Monitor
+
+    env = tp.TrainingInfo(
+        Monitor(gym.make(ENV_ID, max_episode_steps=3), info_keywords=("is_success",))
+    )
+    env.reset(seed=0)
+    for k in range(3):
+        *_, terminated, truncated, info = env.step(np.array([1.0, 1.0], np.float32))
+        assert ("episode" in info) == (terminated or truncated) == (k == 2)
+    assert info["episode"]["l"] == 3 and info["episode"]["is_success"] == info["is_success"]
+
+
 def test_monitor_records_the_episode_sums_of_the_reward_terms(tmp_path):
     """``make_env`` (benchmarks, checks): the Monitor CSV row of an episode holds each reward
     term summed over its steps, added to the last step's info only."""

@@ -46,7 +46,8 @@ def test_zoo_reads_the_entry_of_each_id(env_id, tmp_path):
     env = gym.make(env_id, **manager.env_kwargs)
     if wrapper is not None:
         env = wrapper(env)
-    assert isinstance(env, tp.ApproachShaping) == (env_id == "FrictionlessGraspRandomShapes-v0")
+    assert isinstance(env, tp.TrainingInfo)  # last, so that the shaping sees the whole info
+    assert isinstance(env.env, tp.ApproachShaping) == (env_id == "FrictionlessGraspRandomShapes-v0")
     env.close()
 
 
