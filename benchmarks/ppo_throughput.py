@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from benchmarks.common import OUT, REPO, headless, table, write
+from grasp_env.cli import positive_int
 
 VEC_ENVS = ("dummy", "subproc")
 ROUNDS = 5
@@ -118,7 +119,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one rollout per measurement")
     parser.add_argument(
-        "--rounds", type=int, help=f"alternating rounds (default {ROUNDS}, 1 with --quick)"
+        "--rounds", type=positive_int, help=f"alternating rounds (default {ROUNDS}, 1 with --quick)"
     )
     parser.add_argument("--entry", default="fig13_fingers", help="configs/ppo.yml entry")
     parser.add_argument("--out", type=Path, default=OUT / "ppo_throughput.md")
