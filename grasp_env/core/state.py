@@ -142,7 +142,10 @@ class State:
     @property
     def on_support(self) -> bool:
         """Whether the object touches the support."""
-        return any(c.body == "support" for c in self.contacts)
+        for c in self.contacts:
+            if c.body == "support":
+                return True
+        return False
 
     @property
     def palm_pose(self) -> np.ndarray:

@@ -684,8 +684,8 @@ class FrictionlessGraspEnv(gym.Env):
         return Analysis(on_support, closure, grip, closure and not on_support, p_P, out_of_reach)
 
     def _potential(self, state: State) -> float:
-        height = (state.object_pose[1] - self._y0) / state.scene.palm.width
-        return self.reward_weights["lift"] * float(height)
+        height = (state.object_pose.item(1) - self._y0) / state.scene.palm.width
+        return self.reward_weights["lift"] * height
 
     def _get_rew(self, state: State, a: list[float], dropped: bool) -> tuple[float, dict]:
         weights, an = self.reward_weights, self._analysis
@@ -705,8 +705,15 @@ class FrictionlessGraspEnv(gym.Env):
         for x in a:
             effort += x * x
         ctrl = -weights["ctrl"] * effort
-        terms = (float(bonus), float(hold), float(grip), float(lift), float(drop), float(ctrl))
-        return sum(terms), dict(zip(_REWARD_KEYS, terms, strict=True))
+        terms = {
+            "reward_form_closure": float(bonus),
+            "reward_hold": float(hold),
+            "reward_grip": float(grip),
+            "reward_lift": float(lift),
+            "reward_drop": float(drop),
+            "reward_ctrl": float(ctrl),
+        }  # the keys of _REWARD_KEYS, in its order: the reward adds them in this order
+        return sum(terms.values()), terms
 
     # ------------------------------------------------------------------ observation / info
     def _get_obs(self) -> np.ndarray:

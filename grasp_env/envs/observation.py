@@ -37,7 +37,7 @@ BODY_INDEX = {name: 2 * i for i, name in enumerate(BODIES)}
 
 def in_palm_frame(state: State) -> tuple[float, float, float]:
     """Object pose ``(x, y, theta)`` in the palm frame."""
-    x_p, y_p, th_p = state.hand[:3].tolist()
+    x_p, y_p, th_p, _, _ = state.hand.tolist()
     x_o, y_o, th_o = state.object_pose.tolist()
     dx, dy = x_o - x_p, y_o - y_p
     c, s = math.cos(th_p), math.sin(th_p)

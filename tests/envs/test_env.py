@@ -397,6 +397,7 @@ def test_info_keys_on_reset_and_step():
     _, reset_info = env.reset(seed=0)
     for info in (reset_info, env.step(np.zeros(2))[-1]):
         assert DOCUMENTED_INFO_KEYS | {"events", "is_success", *REWARD_KEYS} <= info.keys()
+        assert [k for k in info if k.startswith("reward_")] == REWARD_KEYS  # one order
         for key in ("object_pose", "palm_pose", "finger_angles"):
             assert isinstance(info[key], np.ndarray)
         assert all(
