@@ -7,7 +7,8 @@ work_precision, profile, memory, planner (the scripted planner on random shapes,
 ``planner_shapes.py``), blas_variation (seeded episodes under several OpenBLAS core types),
 step_times (the step-time tail on adversarial shapes), ppo (PPO training throughput,
 ``ppo_throughput.py``; left out of ``--quick`` unless named with ``--only``), scripted_speedup
-(the scripted policy's episode rate against the simulator before its compiled core).
+(the scripted policy's episode rate against the simulator before its compiled core),
+step_parts (the env's shell and the compiled move timed apart, unprofiled).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from benchmarks import (
     ppo_throughput,
     profile_step,
     scripted_speedup,
+    step_parts,
     step_times,
     throughput,
     work_precision,
@@ -42,6 +44,7 @@ SUITE = {
     "blas_variation": lambda quick, out: blas_variation.run(out, episodes=3 if quick else 200),
     "step_times": lambda quick, out: step_times.run(out, episodes=3 if quick else 200),
     "ppo": lambda quick, out: ppo_throughput.run(quick, out / "ppo_throughput.md"),
+    "step_parts": lambda quick, out: step_parts.run(quick, out / "step_parts.md"),
     "scripted_speedup": lambda quick, out: scripted_speedup.run(
         budget=3.0 if quick else 20.0, rounds=2 if quick else 3, out=out / "scripted_speedup.md"
     ),

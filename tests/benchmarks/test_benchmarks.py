@@ -15,6 +15,7 @@ from benchmarks import (
     planner_shapes,
     profile_step,
     scripted_speedup,
+    step_parts,
     step_times,
     throughput,
     work_precision,
@@ -32,6 +33,7 @@ from benchmarks.__main__ import main as run_suite
         ),
         pytest.param(lambda out: profile_step.run(True, out, steps=3, closing=False), id="profile"),
         pytest.param(lambda out: memory.run(True, out, steps=2, repeat=1, workers=2), id="memory"),
+        pytest.param(lambda out: step_parts.run(True, out, steps=30), id="step_parts"),
         pytest.param(
             lambda out: scripted_speedup.run(
                 Path(scripted_speedup.__file__).parent.parent, budget=0.05, rounds=1, out=out
@@ -150,3 +152,20 @@ def test_scripted_speedup_exports_a_commit(tmp_path):
     tree = scripted_speedup.export("HEAD", tmp_path)
     assert (tree / "grasp_env" / "__init__.py").is_file()
     assert (tree / "agents" / "scripted.py").is_file()
+
+
+def test_step_parts_classes_moves_by_their_work():
+    # (seconds, pose solves, untouched, allocations)
+    moves = [(1e-6, 0, True, 27), (3e-6, 0, False, 100), (2e-6, 2, False, 200),
+             (4e-6, 3, False, 240), (10e-6, 12, False, 900)]  # fmt: skip
+    res = step_parts.classify(moves)
+    assert set(res) == set(step_parts.CLASSES)
+    assert res["hand clear of a resting object"]["share"] == pytest.approx(0.2)
+    assert res["no pose solve"]["allocations"] == 100
+    one_to_three = res["1-3 pose solves"]
+    assert one_to_three["share"] == pytest.approx(0.4)
+    assert one_to_three["time_share"] == pytest.approx(6 / 20)
+    assert one_to_three["median_us"] == pytest.approx(3.0)
+    assert one_to_three["allocations"] == pytest.approx(220)
+    assert res["4-9 pose solves"]["share"] == 0.0
+    assert res[">= 10 pose solves"]["time_share"] == pytest.approx(0.5)

@@ -405,6 +405,62 @@ def test_made_env_bad_action_refused(make, case: str, action: Any, field: str, v
     assert_same_after(env, twin)
 
 
+@pytest.mark.parametrize("make", MAKERS.values(), ids=MAKE_IDS)
+def test_made_env_bad_action_refused_mid_episode(make) -> None:
+    """Refused after steps, when steps pass straight through the outer wrapper: the time
+    limit's count and the env are as a twin's that never saw the bad action."""
+    env, twin = made_twins(make)
+    for _ in range(4):
+        env.step(ACTION)
+        twin.step(ACTION)
+    assert env._steps_pass_through  # gymnasium's wrappers all pass a step on first
+    assert_refused(lambda: env.step([math.nan] * 5), r"action", r"nan", ValueError)
+    steps = [w._elapsed_steps for w in (env, twin) if hasattr(w, "_elapsed_steps")]
+    assert len(set(steps)) <= 1
+    assert_same_after(env, twin)
+
+
+class CountsFirst(gym.Wrapper):
+    """A wrapper that changes itself before it passes a step on."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.calls = 0
+
+    def step(self, action: Any):
+        self.calls += 1
+        return self.env.step(action)
+
+
+def test_restore_on_error_keeps_saving_for_an_unknown_wrapper() -> None:
+    from grasp_env.envs.restore import RestoreOnError
+
+    env = RestoreOnError(CountsFirst(FrictionlessGraspEnv("fig13", palm_control=True)))
+    env.reset(seed=3)
+    env.step(ACTION)
+    assert not env._steps_pass_through
+    assert_refused(lambda: env.step([math.nan] * 5), r"action", r"nan", ValueError)
+    assert env.env.calls == 1
+    env.step(ACTION)
+    assert env.env.calls == 2
+
+
+def test_restore_on_error_knows_rl_zoo_time_limit(monkeypatch) -> None:
+    """rl_zoo3's TimeLimit counts after the step returns, as gymnasium's does (importing it
+    replaces gymnasium's: put back afterwards)."""
+    import gymnasium.envs.registration as registration
+
+    monkeypatch.setattr(gym.wrappers, "TimeLimit", gym.wrappers.TimeLimit)
+    monkeypatch.setattr(registration, "TimeLimit", None, raising=False)
+    from rl_zoo3.gym_patches import PatchedTimeLimit
+
+    from grasp_env.envs.restore import step_forwards_first
+
+    inner = FrictionlessGraspEnv("fig13")
+    assert step_forwards_first(PatchedTimeLimit(inner, max_episode_steps=5))
+    assert not step_forwards_first(CountsFirst(inner))
+
+
 def test_made_env_restore_on_error_is_outermost_once() -> None:
     env = gym.make(ENV_ID, **KW)
     again = gym.make(env.spec)  # recreated from its spec: the same stack, no second copy
