@@ -34,6 +34,7 @@ import numpy as np
 import grasp_env  # noqa: F401  (registers the env ids)
 from benchmarks.common import OUT, REPO, headless, table, write
 from benchmarks.throughput import RandomActions
+from grasp_env.sim.move import OUT_UNTOUCHED
 from grasp_env.simulator import Simulator
 
 #: Set-ups measured: name -> ``gymnasium.make`` keyword arguments.
@@ -77,7 +78,7 @@ def record_moves(kwargs: dict, steps: int, count_allocations: bool = False) -> l
         seconds = time.perf_counter() - t0
         if count_allocations:
             allocs = rtsys.get_allocation_stats().alloc - allocs
-        moves.append((seconds, int(sim._solves[0]), bool(out[0][-1]), allocs))
+        moves.append((seconds, int(sim._solves[0]), bool(out[0][OUT_UNTOUCHED]), allocs))
         return out
 
     env = gym.make("FrictionlessGrasp-v0", **kwargs)
