@@ -84,24 +84,29 @@ BOOTSTRAP_SAMPLES = 2000
 @dataclass(frozen=True)
 class PolicySpec:
     """A policy to evaluate: ``kind`` is "scripted", "random", "ppo" (with ``model_dir``) or
-    "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``)."""
+    "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``); ``residual``:
+    the ``agents.residual.PlannerResidual`` arguments of a model that corrects the planner."""
 
     name: str
     kind: str
     env_kwargs: dict = field(default_factory=dict)
     model_dir: str | None = None
+    residual: dict | None = None
 
 
 def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
-    """The spec of a trained model directory: its training env set-up (palm control, start)
-    from its saved config, with the env's default reward weights like every other policy."""
+    """The spec of a trained model directory: its training env set-up (palm control, start,
+    a correction to the planner) from its saved config, with the env's default reward weights
+    like every other policy."""
+    from agents.residual import residual_kwargs
+
     _, _, name, entry = load_agent(model_dir)
     kwargs = {
         k: v
         for k, v in entry.get("env_kwargs", {}).items()
         if k not in SUITE_KEYS and not k.startswith("reward_")  # one return for all policies
     }
-    return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir))
+    return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir), residual_kwargs(entry))
 
 
 def rllib_spec(path: str | os.PathLike) -> PolicySpec:
@@ -182,7 +187,12 @@ def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extr
     kwargs = {**spec.env_kwargs, **suite_kwargs, **extra}
     if max_steps is not None:
         kwargs["max_episode_steps"] = max_steps
-    return gym.make("FrictionlessGrasp-v0", **kwargs)
+    env = gym.make("FrictionlessGrasp-v0", **kwargs)
+    if spec.residual is None:
+        return env
+    from agents.residual import PlannerResidual
+
+    return PlannerResidual(env, **spec.residual)
 
 
 def run_episode(

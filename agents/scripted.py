@@ -214,11 +214,20 @@ class ScriptedPolicy:
     Args:
         env: a ``FrictionlessGraspEnv``, possibly wrapped.
         dq: finger increment of the lifting phase (rad).
+        fallbacks: with ``palm_control``, re-place the hand or explore where lifting from the
+            env's placement fails; False keeps to lifting from where the hand is (cheap: no
+            placement search), as a base policy in training does.
+
+    Attributes:
+        on_fallback: the episode follows a re-placement or an exploratory path (replayed
+            exactly past tipping bifurcations) rather than lifting from the env's placement.
     """
 
-    def __init__(self, env, dq: float = 0.02) -> None:
+    def __init__(self, env, dq: float = 0.02, fallbacks: bool = True) -> None:
         self.env = env
         self.dq = dq
+        self.fallbacks = fallbacks
+        self.on_fallback = False
         self.plan: planning.Plan | None = None
         self._ready = False  # reset() has planned
         self._transit_left = -1  # waypoints left before the planned placement (-1: none)
@@ -239,6 +248,7 @@ class ScriptedPolicy:
             raise RuntimeError("reset the env (env.reset()) before ScriptedPolicy.reset()")
         self._replans = 0
         self._explored = False
+        self.on_fallback = False
         self._transit_left = -1
         self._replan()
         self._ready = True
@@ -248,7 +258,7 @@ class ScriptedPolicy:
         sim, state = base.simulator, base.state
         plan = self._fixed_palm_plan(sim, state)
         self._use(plan, [])
-        if not plan.success and palm_moves and base.palm_control:
+        if not plan.success and palm_moves and self.fallbacks and base.palm_control:
             if not self._replan_with_palm(sim, state):
                 self._explore(state)
 
@@ -301,6 +311,7 @@ class ScriptedPolicy:
         if path is None:
             return False
         self._use(plan, path)
+        self.on_fallback = True
         return True
 
     def _explore(self, state) -> None:
@@ -351,6 +362,7 @@ class ScriptedPolicy:
             return
         plan.add(planning.adjust_grip(base.simulator, end))
         self._use(plan, [], increments)
+        self.on_fallback = True
 
     def _full_plan(self, sim: Simulator) -> planning.Plan:
         """:func:`grasp_env.planning.plan_grasp` on the env's scene, cached per scene (the
@@ -363,6 +375,11 @@ class ScriptedPolicy:
             # no exploratory lifting here: the policy explores from the env's own state
             _PLAN_CACHE[key] = planning.plan_grasp(scene, sim=sim, dq=self.dq, explore_moves=0)
         return _PLAN_CACHE[key]
+
+    @property
+    def done(self) -> bool:
+        """The plan has been played to its end (the policy holds still until a re-plan)."""
+        return self._ready and not self._chunk and not self._waypoints
 
     def act(self, obs=None) -> np.ndarray:
         """The next action, float32 in [-1, 1], of the env's action shape.

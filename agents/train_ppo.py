@@ -83,6 +83,9 @@ SHIPPED = {
     RANDOM_SHAPES_ENV_ID: "random_shapes_palm",
     LIFT_ENV_ID: "lift_palm",
 }
+#: The shipped model directory of each env id's residual agents (an entry whose
+#: ``env_wrapper`` names ``agents.residual.PlannerResidual``, ``configs/ppo_residual.yml``).
+SHIPPED_RESIDUAL = {LIFT_ENV_ID: "lift_residual"}
 #: Config names of the former scheme (top-level keys were config names), still accepted.
 LEGACY_NAMES = {name: env_id for env_id, name in SHIPPED.items()}
 
@@ -592,6 +595,18 @@ def prepare(
     return env_id, entry
 
 
+def shipped_name(env_id: str, entry: dict[str, Any]) -> str:
+    """The shipped model directory's name (``agents/models/<name>``) of a training entry:
+    by env id, residual agents apart (ValueError where none is shipped)."""
+    from agents.residual import residual_kwargs
+
+    names = SHIPPED_RESIDUAL if residual_kwargs(entry) is not None else SHIPPED
+    if env_id not in names:
+        kind = "residual model" if names is SHIPPED_RESIDUAL else "model"
+        raise ValueError(f"--update-shipped: no shipped {kind} for {env_id!r}")
+    return names[env_id]
+
+
 def train(
     env_id: str,
     *,
@@ -982,12 +997,10 @@ def main(argv: list[str] | None = None) -> None:
     args = p.parse_args(argv)
     hyperparams = dict(args.hyperparams or [])
     try:
-        env_id, _ = prepare(args.env, args.conf_file, hyperparams, args.n_timesteps)
+        env_id, entry = prepare(args.env, args.conf_file, hyperparams, args.n_timesteps)
         out = args.out
         if args.update_shipped:
-            if env_id not in SHIPPED:
-                raise ValueError(f"--update-shipped: no shipped model for {env_id!r}")
-            out = MODEL_DIR / SHIPPED[env_id]
+            out = MODEL_DIR / shipped_name(env_id, entry)
         elif out is not None and (Path(out) / "model.zip").exists():
             raise ValueError(f"--out {out!r} already holds a model; choose a new directory")
     except ValueError as exc:

@@ -1,0 +1,114 @@
+"""A residual agent: a learned correction added to the scripted planner's actions.
+
+:class:`PlannerResidual` wraps a palm-controlled env so that the agent's action is a
+correction to :class:`agents.scripted.ScriptedPolicy`'s: the env receives ``clip(base +
+scale * correction)``, and the agent observes the env's observation followed by the base
+action. A zero correction is the planner itself, so training starts from the planner's
+success and learns what to change (a lighter grip, a squeeze that does not jam).
+
+Where the planner has to re-place the hand or explore with palm motion (its fallbacks, when
+lifting from the env's placement gets stuck), it replays a path found by exact simulation
+past tipping bifurcations, which any correction would break: the correction is ignored for
+the rest of that episode. With ``after_plan`` the correction acts only once the planner's
+plan has been played to its end: the planner lifts and adjusts the grip, and the agent then
+holds the object (the planner's palm stays fixed; the agent's may move).
+
+With ``redraw`` (training), a shape whose lifting from the placement gets stuck is redrawn at
+reset instead, and the planner runs without fallbacks: the corrections are learned where
+they act, without the fallbacks' seconds of search.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from agents.scripted import ScriptedPolicy
+
+#: Resets at most per episode with ``redraw`` before a stuck shape is kept.
+MAX_REDRAWS = 20
+
+
+class PlannerResidual(gym.Wrapper):
+    """The env seen through a correction to the scripted planner's action.
+
+    Observation: the env's, then the planner's next action (5 floats in [-1, 1]). Action:
+    the correction, in [-1, 1] per entry, scaled by ``scale`` and added to the planner's
+    action; the sum is clipped to the env's action bounds.
+
+    Args:
+        env: a ``FrictionlessGrasp-v0`` env with ``palm_control`` (five actions).
+        scale: largest correction, as a fraction of an action's range (0 < scale <= 1).
+        redraw: at reset, redraw shapes whose lifting from the placement gets stuck (up to
+            ``MAX_REDRAWS`` times) and run the planner without fallbacks; for training.
+        after_plan: the correction acts only once the planner's plan is done.
+
+    Raises:
+        ValueError: ``scale`` outside (0, 1], or an env without palm control.
+    """
+
+    def __init__(
+        self, env: gym.Env, scale: float = 0.25, redraw: bool = False, after_plan: bool = False
+    ) -> None:
+        super().__init__(env)
+        if not (isinstance(scale, (int, float)) and 0.0 < scale <= 1.0):
+            raise ValueError(f"scale must be in (0, 1], got {scale!r}")
+        if not env.unwrapped.palm_control:
+            raise ValueError("PlannerResidual needs palm_control=True (five actions), got False")
+        self.scale = float(scale)
+        self.redraw = bool(redraw)
+        self.after_plan = bool(after_plan)
+        self.policy = ScriptedPolicy(env, fallbacks=not redraw)
+        inner = env.observation_space
+        self.observation_space = gym.spaces.Box(
+            np.concatenate([inner.low, -np.ones(5, np.float32)]),
+            np.concatenate([inner.high, np.ones(5, np.float32)]),
+            dtype=np.float32,
+        )
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (5,), np.float32)
+        self._base = np.zeros(5, np.float32)
+
+    def reset(self, *, seed=None, options=None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.policy.reset(obs, info)
+        redraws = MAX_REDRAWS if self.redraw else 0
+        while redraws and not self.policy.plan.success:
+            redraws -= 1
+            obs, info = self.env.reset(options=options)
+            self.policy.reset(obs, info)
+        self._base = self.policy.act(obs)
+        return self._observe(obs), info
+
+    def step(self, action):
+        correction = np.asarray(action, dtype=np.float32)
+        if correction.shape != (5,) or not np.isfinite(correction).all():
+            raise ValueError(
+                f"action (the correction) must be 5 finite numbers, got {np.asarray(action)!r}"
+            )
+        if self.policy.on_fallback or (self.after_plan and not self._plan_played()):
+            correction = np.zeros(5, np.float32)
+        low, high = self.env.action_space.low, self.env.action_space.high
+        sent = np.clip(self._base + self.scale * correction, low, high).astype(np.float32)
+        obs, reward, terminated, truncated, info = self.env.step(sent)
+        if not (terminated or truncated):
+            self._base = self.policy.act(obs)
+        return self._observe(obs), reward, terminated, truncated, info
+
+    def _plan_played(self) -> bool:
+        """The planner has played its plan to the end and holds still."""
+        return self.policy.done and not self._base.any()
+
+    def _observe(self, obs: np.ndarray) -> np.ndarray:
+        return np.concatenate([obs, self._base]).astype(np.float32)
+
+
+def residual_kwargs(entry: dict) -> dict | None:
+    """The :class:`PlannerResidual` arguments a training entry (``configs/*.yml``) names in
+    its ``env_wrapper``, for playing its policy (``redraw`` off: every shape is played as
+    drawn, the planner with its fallbacks); None for an entry without one."""
+    from agents.train_ppo import wrapper_specs
+
+    for cls, kwargs in wrapper_specs(entry):
+        if cls is PlannerResidual:
+            return {**kwargs, "redraw": False}
+    return None

@@ -1,0 +1,196 @@
+"""agents.residual: a correction added to the scripted planner's actions."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import grasp_env  # noqa: F401  (registers the env ids)
+from agents import train_ppo
+from agents.evaluate import LIFT_KWARGS, PolicySpec, make_env
+from agents.residual import PlannerResidual, residual_kwargs
+from agents.scripted import ScriptedPolicy
+
+ROOT = Path(__file__).resolve().parents[2]
+#: Held-out lifting shapes (agents.evaluate's ``lift`` suite): lifting from the placement
+#: succeeds for the first; it gets stuck for the second, where the planner explores with palm
+#: motion (about 3 s of search).
+LIFTS, STUCK = 1_000_001, 1_000_012
+
+
+def _lift_env(**kwargs) -> gym.Env:
+    return gym.make(
+        "FrictionlessGrasp-v0",
+        palm_control=True,
+        hand_features=True,
+        max_episode_steps=200,
+        **LIFT_KWARGS,
+        **kwargs,
+    )
+
+
+class _Sent(gym.Wrapper):
+    """Records the actions that reach the env."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.sent = []
+
+    def step(self, action):
+        self.sent.append(np.array(action))
+        return self.env.step(action)
+
+
+def _play(env, act, seed):
+    obs, info = env.reset(seed=seed)
+    hands = [env.unwrapped.state.hand.copy()]
+    while True:
+        obs, _, terminated, truncated, info = env.step(act(obs))
+        hands.append(env.unwrapped.state.hand.copy())
+        if terminated or truncated:
+            return info, np.array(hands)
+
+
+def test_a_zero_correction_is_the_planner():
+    env = _lift_env()
+    policy = ScriptedPolicy(env)
+
+    def planner(obs):
+        return policy.act(obs)
+
+    obs, info = env.reset(seed=LIFTS)
+    policy.reset(obs, info)
+    hands = [env.unwrapped.state.hand.copy()]
+    while True:
+        obs, _, terminated, truncated, expected = env.step(planner(obs))
+        hands.append(env.unwrapped.state.hand.copy())
+        if terminated or truncated:
+            break
+    assert expected["is_success"]
+    got, got_hands = _play(PlannerResidual(_lift_env()), lambda obs: np.zeros(5), LIFTS)
+    assert got["is_success"]
+    assert got["grip_force"] == expected["grip_force"]
+    np.testing.assert_array_equal(got_hands, np.array(hands))
+
+
+def test_the_env_receives_the_planner_action_plus_the_scaled_correction_clipped():
+    sent = _Sent(_lift_env())
+    env = PlannerResidual(sent, scale=0.5)
+    obs, _ = env.reset(seed=LIFTS)
+    assert env.observation_space.shape == (sent.observation_space.shape[0] + 5,)
+    rng = np.random.default_rng(0)
+    expected = []
+    for _ in range(30):
+        correction = rng.uniform(-1, 1, 5).astype(np.float32)
+        assert env.observation_space.contains(obs)
+        base = obs[-5:]
+        expected.append(np.clip(base + np.float32(0.5) * correction, -1, 1))
+        obs, _, terminated, truncated, _ = env.step(correction)
+        assert not (terminated or truncated)
+    np.testing.assert_array_equal(np.array(sent.sent), np.array(expected, np.float32))
+    # the planner closes the fingers first: its actions are not all zero
+    assert np.abs(np.array(expected)[:, :2]).max() > 0.1
+
+
+def test_on_the_planner_fallback_the_correction_is_ignored():
+    sent = _Sent(_lift_env())
+    env = PlannerResidual(sent)
+    obs, _ = env.reset(seed=STUCK)
+    assert env.policy.on_fallback  # lifting from the placement got stuck: it explores
+    bases = []
+    while True:
+        bases.append(obs[-5:].copy())
+        obs, _, terminated, truncated, info = env.step(np.ones(5, np.float32))
+        if terminated or truncated:
+            break
+    np.testing.assert_array_equal(np.array(sent.sent), np.array(bases))
+    assert info["is_success"]  # the planner's exploratory path, replayed exactly
+
+
+def test_redraw_keeps_shapes_that_lift_from_the_placement():
+    env = PlannerResidual(_lift_env(), redraw=True)
+    assert env.policy.fallbacks is False
+    env.reset(seed=STUCK - 12)  # the first held-out shape gets stuck as well
+    assert env.policy.plan.success and not env.policy.on_fallback
+    first = env.unwrapped.scene.object.vertices_B.copy()
+    plain = _lift_env()
+    plain.reset(seed=STUCK - 12)
+    assert not np.array_equal(first, plain.unwrapped.scene.object.vertices_B)  # redrawn
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "needle"),
+    [
+        ({"scale": 0.0}, "scale must be in \\(0, 1\\], got 0.0"),
+        ({"scale": 1.5}, "scale must be in \\(0, 1\\], got 1.5"),
+        ({"scale": "big"}, "scale must be in \\(0, 1\\], got 'big'"),
+    ],
+)
+def test_bad_scale_is_named(kwargs, needle):
+    with pytest.raises(ValueError, match=needle):
+        PlannerResidual(_lift_env(), **kwargs)
+
+
+def test_an_env_without_palm_control_is_refused():
+    with pytest.raises(ValueError, match="palm_control=True"):
+        PlannerResidual(gym.make("FrictionlessGrasp-v0"))
+
+
+@pytest.mark.parametrize(
+    "bad", [np.zeros(4), np.array([0, 0, np.nan, 0, 0]), np.full(5, np.inf)], ids=str
+)
+def test_a_bad_correction_is_named_and_the_env_stays_usable(bad):
+    env = PlannerResidual(_lift_env())
+    obs, _ = env.reset(seed=LIFTS)
+    hand = env.unwrapped.state.hand.copy()
+    with pytest.raises(ValueError, match="action \\(the correction\\) must be 5 finite"):
+        env.step(bad)
+    np.testing.assert_array_equal(env.unwrapped.state.hand, hand)
+    np.testing.assert_array_equal(obs[-5:], env._base)
+    obs, _, _, _, info = env.step(np.zeros(5, np.float32))
+    assert np.isfinite(obs).all() and "sim_error" not in info
+
+
+def test_the_residual_config_names_the_wrapper_and_evaluation_plays_it():
+    env_id, entry = train_ppo.prepare(
+        "FrictionlessGraspLift-v0", ROOT / "configs" / "ppo_residual.yml"
+    )
+    assert residual_kwargs(entry) == {"scale": 0.25, "redraw": False}
+    _, plain = train_ppo.prepare("FrictionlessGraspLift-v0", ROOT / "configs" / "ppo.yml")
+    assert residual_kwargs(plain) is None
+    assert train_ppo.shipped_name(env_id, entry) == "lift_residual"
+    assert train_ppo.shipped_name(env_id, plain) == "lift_palm"
+    with pytest.raises(ValueError, match="no shipped residual model for 'FrictionlessGrasp-v0'"):
+        train_ppo.shipped_name("FrictionlessGrasp-v0", entry)
+    spec = PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, residual_kwargs(entry))
+    env = make_env(spec, LIFT_KWARGS, 200)
+    assert isinstance(env, PlannerResidual) and not env.redraw and env.policy.fallbacks
+
+
+def test_after_plan_the_correction_waits_for_the_planner_to_finish():
+    planner = _lift_env()
+    obs, info = planner.reset(seed=LIFTS)
+    policy = ScriptedPolicy(planner)
+    policy.reset(obs, info)
+    planned = []
+    while not (policy.done and planned and not planned[-1].any()):
+        planned.append(policy.act(obs))
+        obs, *_ = planner.step(planned[-1])
+    planned.pop()  # the first zero action: the plan is done
+    assert len(planned) > 10
+    sent = _Sent(_lift_env())
+    env = PlannerResidual(sent, after_plan=True)
+    env.reset(seed=LIFTS)
+    correction = np.full(5, 0.5, np.float32)
+    for _ in range(len(planned) + 3):
+        env.step(correction)
+    np.testing.assert_array_equal(np.array(sent.sent[: len(planned)]), np.array(planned))
+    np.testing.assert_allclose(np.array(sent.sent[len(planned) :]), 0.125)  # 0.25 x 0.5
