@@ -92,6 +92,13 @@ def test_shipped_models_keep_their_set_up():
     assert spec.name == "ppo_random_shapes_palm"
     assert spec.env_kwargs == {"palm_control": True}  # the suites set the start
     assert ev.ppo_spec(tp.MODEL_DIR / "fig13_fingers").env_kwargs == {}
+    # the residual agent: played through the wrapper its config names, without redraw
+    model, norm, _, entry = tp.load_agent(tp.MODEL_DIR / "lift_residual")
+    assert entry["env_id"] == LIFT_ENV_ID and norm is not None
+    assert model.observation_space.shape == (env.observation_space.shape[0] + 5,)
+    spec = ev.ppo_spec(tp.MODEL_DIR / "lift_residual")
+    assert spec.residual == {"scale": 0.25, "redraw": False}
+    assert spec.env_kwargs == {"palm_control": True, "hand_features": True}
 
 
 def test_importing_train_ppo_needs_neither_sb3_nor_the_zoo():
