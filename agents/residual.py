@@ -24,6 +24,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.scripted import ScriptedPolicy
+from grasp_env.errors import ComputationError
 
 #: Resets at most per episode with ``redraw`` before a stuck shape is kept.
 MAX_REDRAWS = 20
@@ -40,7 +41,11 @@ class PlannerResidual(gym.Wrapper):
         env: a ``FrictionlessGrasp-v0`` env with ``palm_control`` (five actions).
         scale: largest correction, as a fraction of an action's range (0 < scale <= 1).
         redraw: at reset, redraw shapes whose lifting from the placement gets stuck (up to
-            ``MAX_REDRAWS`` times) and run the planner without fallbacks; for training.
+            ``MAX_REDRAWS`` times) and run the planner without fallbacks; for training. A
+            planning failure (``ComputationError``: a move the simulator cannot make) then
+            counts as stuck at reset and makes the planner hold still mid-episode (reported
+            once as ``info["planner_error"]``); without ``redraw`` it is raised, as by the
+            planner alone.
         after_plan: the correction acts only once the planner's plan is done.
 
     Raises:
@@ -67,17 +72,31 @@ class PlannerResidual(gym.Wrapper):
         )
         self.action_space = gym.spaces.Box(-1.0, 1.0, (5,), np.float32)
         self._base = np.zeros(5, np.float32)
+        self._planner_error: str | None = None
 
     def reset(self, *, seed=None, options=None):
         obs, info = self.env.reset(seed=seed, options=options)
-        self.policy.reset(obs, info)
         redraws = MAX_REDRAWS if self.redraw else 0
-        while redraws and not self.policy.plan.success:
+        while not self._plan(obs, info) and redraws:
             redraws -= 1
             obs, info = self.env.reset(options=options)
-            self.policy.reset(obs, info)
-        self._base = self.policy.act(obs)
+        self._base = np.zeros(5, np.float32) if self._planner_error else self.policy.act(obs)
         return self._observe(obs), info
+
+    def _plan(self, obs, info) -> bool:
+        """Plan the episode; whether lifting from the placement reaches form closure. With
+        ``redraw`` a planning failure (a move the simulator cannot make) counts as stuck, and
+        the planner holds still if the shape is kept; without, it is raised, as the planner
+        alone raises it."""
+        self._planner_error = None
+        try:
+            self.policy.reset(obs, info)
+        except ComputationError as exc:
+            if not self.redraw:
+                raise
+            self._planner_error = f"{type(exc).__name__}: {exc}"
+            return False
+        return self.policy.plan.success
 
     def step(self, action):
         correction = np.asarray(action, dtype=np.float32)
@@ -90,13 +109,20 @@ class PlannerResidual(gym.Wrapper):
         low, high = self.env.action_space.low, self.env.action_space.high
         sent = np.clip(self._base + self.scale * correction, low, high).astype(np.float32)
         obs, reward, terminated, truncated, info = self.env.step(sent)
-        if not (terminated or truncated):
-            self._base = self.policy.act(obs)
+        if not (terminated or truncated) and self._planner_error is None:
+            try:
+                self._base = self.policy.act(obs)
+            except ComputationError as exc:  # a re-plan failed
+                if not self.redraw:
+                    raise
+                self._planner_error = f"{type(exc).__name__}: {exc}"  # the planner holds still
+                self._base = np.zeros(5, np.float32)
+                info = {**info, "planner_error": self._planner_error}
         return self._observe(obs), reward, terminated, truncated, info
 
     def _plan_played(self) -> bool:
-        """The planner has played its plan to the end and holds still."""
-        return self.policy.done and not self._base.any()
+        """The planner has played its plan to the end (or failed) and holds still."""
+        return (self._planner_error is not None or self.policy.done) and not self._base.any()
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
         return np.concatenate([obs, self._base]).astype(np.float32)

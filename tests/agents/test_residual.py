@@ -18,6 +18,7 @@ from agents import train_ppo
 from agents.evaluate import LIFT_KWARGS, PolicySpec, make_env
 from agents.residual import PlannerResidual, residual_kwargs
 from agents.scripted import ScriptedPolicy
+from grasp_env.errors import WorkLimitError
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Held-out lifting shapes (agents.evaluate's ``lift`` suite): lifting from the placement
@@ -194,3 +195,50 @@ def test_after_plan_the_correction_waits_for_the_planner_to_finish():
         env.step(correction)
     np.testing.assert_array_equal(np.array(sent.sent[: len(planned)]), np.array(planned))
     np.testing.assert_allclose(np.array(sent.sent[len(planned) :]), 0.125)  # 0.25 x 0.5
+
+
+def _failing_reset(monkeypatch, fail_first: int):
+    """Make the planner's first ``fail_first`` resets fail as a move the simulator cannot
+    make does (the shape's planning raises ``WorkLimitError``)."""
+    calls = {"n": 0}
+    original = ScriptedPolicy.reset
+
+    def reset(self, obs=None, info=None):
+        calls["n"] += 1
+        if calls["n"] <= fail_first:
+            raise WorkLimitError("the move needs more than 5000 pose solves")
+        return original(self, obs, info)
+
+    monkeypatch.setattr(ScriptedPolicy, "reset", reset)
+    return calls
+
+
+def test_a_planning_failure_is_redrawn_in_training_and_raised_otherwise(monkeypatch):
+    calls = _failing_reset(monkeypatch, 2)
+    env = PlannerResidual(_lift_env(), redraw=True)
+    obs, _ = env.reset(seed=LIFTS)
+    assert calls["n"] >= 3 and env.policy.plan.success and obs[-5:].any()
+    calls = _failing_reset(monkeypatch, 1)
+    with pytest.raises(WorkLimitError, match="5000 pose solves"):
+        PlannerResidual(_lift_env()).reset(seed=LIFTS)
+
+
+def test_a_failed_replan_in_training_leaves_the_correction_in_charge(monkeypatch):
+    sent = _Sent(_lift_env())
+    env = PlannerResidual(sent, redraw=True, after_plan=True)
+    env.reset(seed=LIFTS)
+
+    def act(obs=None):
+        raise WorkLimitError("the move needs more than 5000 pose solves")
+
+    monkeypatch.setattr(env.policy, "act", act)
+    _, _, _, _, info = env.step(np.ones(5, np.float32))
+    assert info["planner_error"] == "WorkLimitError: the move needs more than 5000 pose solves"
+    obs, _, _, _, info = env.step(np.ones(5, np.float32))
+    assert not obs[-5:].any() and "planner_error" not in info
+    np.testing.assert_array_equal(sent.sent[-1], np.full(5, 0.25, np.float32))
+    plain = PlannerResidual(_lift_env())
+    plain.reset(seed=LIFTS)
+    monkeypatch.setattr(plain.policy, "act", act)
+    with pytest.raises(WorkLimitError):
+        plain.step(np.zeros(5, np.float32))
