@@ -39,7 +39,8 @@ class PlannerResidual(gym.Wrapper):
 
     Args:
         env: a ``FrictionlessGrasp-v0`` env with ``palm_control`` (five actions).
-        scale: largest correction, as a fraction of an action's range (0 < scale <= 1).
+        scale: largest correction, as a fraction of an action's largest size, 1
+            (0 < scale <= 1).
         redraw: at reset, redraw shapes whose lifting from the placement gets stuck (up to
             ``MAX_REDRAWS`` times) and run the planner without fallbacks; for training. A
             planning failure (``ComputationError``: a move the simulator cannot make) then
@@ -56,7 +57,7 @@ class PlannerResidual(gym.Wrapper):
         self, env: gym.Env, scale: float = 0.25, redraw: bool = False, after_plan: bool = False
     ) -> None:
         super().__init__(env)
-        if not (isinstance(scale, (int, float)) and 0.0 < scale <= 1.0):
+        if isinstance(scale, bool) or not (isinstance(scale, (int, float)) and 0 < scale <= 1):
             raise ValueError(f"scale must be in (0, 1], got {scale!r}")
         if not env.unwrapped.palm_control:
             raise ValueError("PlannerResidual needs palm_control=True (five actions), got False")

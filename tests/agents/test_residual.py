@@ -133,6 +133,8 @@ def test_redraw_keeps_shapes_that_lift_from_the_placement():
         ({"scale": 0.0}, "scale must be in \\(0, 1\\], got 0.0"),
         ({"scale": 1.5}, "scale must be in \\(0, 1\\], got 1.5"),
         ({"scale": "big"}, "scale must be in \\(0, 1\\], got 'big'"),
+        ({"scale": True}, "scale must be in \\(0, 1\\], got True"),
+        ({"scale": float("nan")}, "scale must be in \\(0, 1\\], got nan"),
     ],
 )
 def test_bad_scale_is_named(kwargs, needle):
