@@ -9,7 +9,9 @@ success and learns what to change (a lighter grip, a squeeze that does not jam).
 Where the planner has to re-place the hand or explore with palm motion (its fallbacks, when
 lifting from the env's placement gets stuck), it replays a path found by exact simulation
 past tipping bifurcations, which any correction would break: the correction is ignored for
-the rest of that episode. With ``after_plan`` the correction acts only once the planner's
+the rest of that episode. ``correction_cost`` charges the reward for the size of the
+correction, so that the agent leaves the planner's action where a change does not pay (the
+usual penalty of residual learning). With ``after_plan`` the correction acts only once the planner's
 plan has been played to its end: the planner lifts and adjusts the grip, and the agent then
 holds the object (the planner's palm stays fixed; the agent's may move).
 
@@ -48,22 +50,39 @@ class PlannerResidual(gym.Wrapper):
             once as ``info["planner_error"]``); without ``redraw`` it is raised, as by the
             planner alone.
         after_plan: the correction acts only once the planner's plan is done.
+        correction_cost: the reward loses ``correction_cost * sum(c**2)`` for the correction
+            ``c`` that acts (in [-1, 1] per entry; zero where it is ignored), reported as
+            ``info["reward_correction"]`` when positive (0, the default, leaves the env's
+            reward as it is).
 
     Raises:
-        ValueError: ``scale`` outside (0, 1], or an env without palm control.
+        ValueError: ``scale`` outside (0, 1], ``correction_cost`` negative or not finite,
+            or an env without palm control.
     """
 
     def __init__(
-        self, env: gym.Env, scale: float = 0.25, redraw: bool = False, after_plan: bool = False
+        self,
+        env: gym.Env,
+        scale: float = 0.25,
+        redraw: bool = False,
+        after_plan: bool = False,
+        correction_cost: float = 0.0,
     ) -> None:
         super().__init__(env)
         if isinstance(scale, bool) or not (isinstance(scale, (int, float)) and 0 < scale <= 1):
             raise ValueError(f"scale must be in (0, 1], got {scale!r}")
+        if isinstance(correction_cost, bool) or not (
+            isinstance(correction_cost, (int, float)) and 0 <= correction_cost < np.inf
+        ):
+            raise ValueError(
+                f"correction_cost must be a finite number >= 0, got {correction_cost!r}"
+            )
         if not env.unwrapped.palm_control:
             raise ValueError("PlannerResidual needs palm_control=True (five actions), got False")
         self.scale = float(scale)
         self.redraw = bool(redraw)
         self.after_plan = bool(after_plan)
+        self.correction_cost = float(correction_cost)
         self.policy = ScriptedPolicy(env, fallbacks=not redraw)
         inner = env.observation_space
         self.observation_space = gym.spaces.Box(
@@ -110,6 +129,9 @@ class PlannerResidual(gym.Wrapper):
         low, high = self.env.action_space.low, self.env.action_space.high
         sent = np.clip(self._base + self.scale * correction, low, high).astype(np.float32)
         obs, reward, terminated, truncated, info = self.env.step(sent)
+        if self.correction_cost:
+            cost = -self.correction_cost * float(np.dot(correction, correction))
+            reward, info = reward + cost, {**info, "reward_correction": cost}
         if not (terminated or truncated) and self._planner_error is None:
             try:
                 self._base = self.policy.act(obs)

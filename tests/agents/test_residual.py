@@ -101,6 +101,35 @@ def test_the_env_receives_the_planner_action_plus_the_scaled_correction_clipped(
     assert np.abs(np.array(expected)[:, :2]).max() > 0.1
 
 
+class _Rewards(gym.Wrapper):
+    """Records the env's own rewards."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.rewards = []
+
+    def step(self, action):
+        out = self.env.step(action)
+        self.rewards.append(out[1])
+        return out
+
+
+@pytest.mark.parametrize("seed", [LIFTS, STUCK])
+def test_the_correction_cost_charges_the_correction_that_acts(seed):
+    inner = _Rewards(_lift_env())
+    env = PlannerResidual(inner, correction_cost=0.3)
+    env.reset(seed=seed)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        correction = rng.uniform(-1, 1, 5).astype(np.float32)
+        _, reward, _, _, info = env.step(correction)
+        # by hand: the 5 squares, or nothing where the planner replays its fallback
+        squares = 0.0 if seed == STUCK else sum(float(c) ** 2 for c in correction)
+        assert reward == pytest.approx(inner.rewards[-1] - 0.3 * squares, rel=1e-6, abs=1e-9)
+        assert info.get("reward_correction", 0.0) == pytest.approx(-0.3 * squares, rel=1e-6)
+    assert env.policy.on_fallback == (seed == STUCK)
+
+
 def test_on_the_planner_fallback_the_correction_is_ignored():
     sent = _Sent(_lift_env())
     env = PlannerResidual(sent)
@@ -135,9 +164,12 @@ def test_redraw_keeps_shapes_that_lift_from_the_placement():
         ({"scale": "big"}, "scale must be in \\(0, 1\\], got 'big'"),
         ({"scale": True}, "scale must be in \\(0, 1\\], got True"),
         ({"scale": float("nan")}, "scale must be in \\(0, 1\\], got nan"),
+        ({"correction_cost": -0.1}, "correction_cost must be a finite number >= 0, got -0.1"),
+        ({"correction_cost": float("inf")}, "correction_cost must be .* got inf"),
+        ({"correction_cost": "x"}, "correction_cost must be .* got 'x'"),
     ],
 )
-def test_bad_scale_is_named(kwargs, needle):
+def test_bad_arguments_are_named(kwargs, needle):
     with pytest.raises(ValueError, match=needle):
         PlannerResidual(_lift_env(), **kwargs)
 
