@@ -31,7 +31,12 @@ def is_real(value: Any) -> bool:
 
 def real_vector(value: Any, name: str, size: int) -> np.ndarray:
     """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``
-    and showing the value: a sequence of real numbers or an int or float array."""
+    and showing the value: a sequence of real numbers or an int or float array (a masked one
+    only with nothing masked)."""
+    if isinstance(value, np.ma.MaskedArray):
+        if np.ma.is_masked(value):
+            raise ValueError(f"{name} must be {size} real numbers, got masked entries: {value}")
+        value = value.data
     is_array = isinstance(value, np.ndarray)
     try:
         arr = value if is_array else np.asarray(value, dtype=object)
@@ -54,3 +59,39 @@ def real_vector(value: Any, name: str, size: int) -> np.ndarray:
     if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got {short(value)}")
     return arr
+
+
+def number(
+    value: Any,
+    name: str,
+    lo: float,
+    hi: float,
+    lo_open: bool = True,
+    hi_open: bool = False,
+) -> float:
+    """A real number (not a bool) as a float, finite and within ``lo`` and ``hi`` (each
+    bound open or closed): ``TypeError`` for a non-number, else ``ValueError``."""
+    if not is_real(value):
+        raise TypeError(f"{name} must be a number, got {short(value)}")
+    try:
+        x = float(value)
+    except OverflowError:  # an int beyond the float range
+        x = math.inf
+    ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)
+    if not ok:
+        interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        raise ValueError(f"{name} must be finite and in {interval}, got {short(value)}")
+    return x
+
+
+def integer(
+    value: Any, name: str, least: int, wrong_type: type = ValueError, most: int | None = None
+) -> int:
+    """An int (not a bool) in ``[least, most]`` (``most`` None: no upper bound);
+    ``wrong_type`` for a non-integer, else ``ValueError``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise wrong_type(f"{name} must be an integer >= {least}, got {value!r}")
+    if value < least or (most is not None and value > most):
+        bounds = f">= {least}" if most is None else f"in [{least}, {most}]"
+        raise ValueError(f"{name} must be an integer {bounds}, got {value!r}")
+    return int(value)

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from grasp_env.arguments import real_vector
+from grasp_env.arguments import integer, number, real_vector
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import Scene
@@ -54,6 +54,8 @@ from grasp_env.sim.model import Model, pack
 #: contacts' own rounding (located events, Newton's residual, flush edges) is no longer small
 #: against the tolerance.
 CONTACT_TOL_RANGE = (1e-11, 1e-2)
+#: Largest ``max_iterations`` and ``max_solves``: the compiled core counts in 64-bit ints.
+MAX_WORK = 10**9
 
 _NO_KEYS = np.zeros((0, 4), dtype=np.int64)
 
@@ -75,9 +77,9 @@ class Simulator:
             they matter for moves whose active set leaves the object free directions.
         fall_step: largest object displacement of one step of a fall, relative to the object's
             size (default 0.02).
-        max_iterations: safety cap on increments per move (default 10000).
+        max_iterations: safety cap on increments per move (default 10000; at most 1e9).
         max_solves: cap on pose solves (Newton runs) per call of :meth:`move_hand` or
-            :meth:`settle`, the retry included (default 5000). A move that needs more
+            :meth:`settle`, the retry included (default 5000; at most 1e9). A move that needs more
             raises :class:`WorkLimitError`; it bounds the time of any one call.
         lp_solver: ``"fast"`` (exact basis enumeration, :mod:`grasp_env.solvers.fastlp`) or
             ``"highs"`` (the reference path through scipy's HiGHS) for the motion LP.
@@ -96,27 +98,14 @@ class Simulator:
         self.scene = load_scene(scene)
         if lp_solver not in ("fast", "highs"):
             raise ValueError(f"lp_solver must be 'fast' or 'highs', got {lp_solver!r}")
-        lo, hi = CONTACT_TOL_RANGE
-        if isinstance(contact_tol, bool) or not (
-            isinstance(contact_tol, float | int) and lo <= contact_tol < hi
-        ):
-            raise ValueError(f"contact_tol must be in [{lo:g}, {hi:g}), got {contact_tol!r}")
-        if not (isinstance(max_step, float | int) and 0 < max_step <= 1):
-            raise ValueError(f"max_step must be in (0, 1], got {max_step!r}")
-        if not (isinstance(fall_step, float | int) and 0 < fall_step <= 1):
-            raise ValueError(f"fall_step must be in (0, 1], got {fall_step!r}")
-        if isinstance(max_iterations, bool) or not (
-            isinstance(max_iterations, int) and max_iterations > 0
-        ):
-            raise ValueError(f"max_iterations must be a positive int, got {max_iterations!r}")
-        if isinstance(max_solves, bool) or not (isinstance(max_solves, int) and max_solves > 0):
-            raise ValueError(f"max_solves must be a positive int, got {max_solves!r}")
+        contact_tol = number(contact_tol, "contact_tol", *CONTACT_TOL_RANGE, False, True)
         self.lp_solver = lp_solver
-        self.max_step = float(max_step)
-        self.max_iterations = max_iterations
-        self.max_solves = max_solves
+        self.max_step = number(max_step, "max_step", 0.0, 1.0)
+        fall_step = number(fall_step, "fall_step", 0.0, 1.0)
+        self.max_iterations = integer(max_iterations, "max_iterations", 1, most=MAX_WORK)
+        self.max_solves = integer(max_solves, "max_solves", 1, most=MAX_WORK)
         L = self.scene.palm.width
-        self.tol = float(contact_tol) * L
+        self.tol = contact_tol * L
         size = float(geo.norms(self.scene.object.vertices_B).max())
         self.size = size  # the object's size: its farthest vertex from the centre of mass
         self.fall_step = float(fall_step) * size
@@ -193,9 +182,24 @@ class Simulator:
         return self.settle(scene.object.start_pose.copy(), scene.initial_hand)
 
     def settle(self, object_pose: np.ndarray, hand: np.ndarray) -> State:
-        """State for a given object pose and hand configuration, after any fall to rest."""
+        """State for a given object pose and hand configuration, after any fall to rest.
+
+        Raises:
+            ValueError: the fingers outside their joint limits, or the object or the hand
+                entering the support or each other by more than the contact tolerance (the
+                simulator moves bodies that touch; it does not separate overlapping ones).
+        """
         q = real_vector(object_pose, "object_pose", 3)
         h = real_vector(hand, "hand", 5)
+        low, high = self.scene.joint_limits.T
+        if np.any(h[3:] < low) or np.any(h[3:] > high):
+            raise ValueError(
+                f"hand: finger angles {h[3:].tolist()} outside the joint limits "
+                f"{self.scene.joint_limits.tolist()}"
+            )
+        problem = kin.hand_placement_problem(self.scene, q, h, self.tol)
+        if problem:
+            raise ValueError(f"object_pose {q.tolist()} with hand {h.tolist()}: {problem}")
         self._solves[0] = 0
         q, log = _compiled(move.settle, self.model, q, h, self._solves)
         return self._make_state(q, h, _events(log))
@@ -219,11 +223,14 @@ class Simulator:
             ``hand_blocked`` say the hand stopped short, and ``events`` say what happened.
 
         Raises:
+            TypeError: ``state`` is not a :class:`~grasp_env.core.state.State`.
+            ValueError: ``state`` is of another scene (a scene loaded again is another one).
             WorkLimitError: the move needs more than ``max_solves`` pose solves (or
                 ``max_iterations`` increments, or stalls).
             SimulationError: a solve failed, and again on the reference LP path with smaller
                 increments.
         """
+        own_state(state, self.scene)
         target = state.hand.tolist()
         if palm is not None:
             target[:3] = _finite_floats(palm, 3, "palm")
@@ -335,6 +342,18 @@ def _events(log: list) -> list[Event]:
         Event(ev.NAMES[kind], s, tuple(ContactKey(*k) for k in keys.tolist()))
         for kind, s, keys in log
     ]
+
+
+def own_state(state: State, scene: Scene) -> None:
+    """Refuse anything but a state of ``scene`` (the very object: scenes compare by identity),
+    naming both scenes."""
+    if not isinstance(state, State):
+        raise TypeError(f"state must be a grasp_env.State, got {type(state).__name__}")
+    if state.scene is not scene:
+        raise ValueError(
+            f"state is of scene {state.scene.name!r}, not of {scene.name!r}, the scene it is "
+            "to move in (a scene loaded again is another scene)"
+        )
 
 
 def _finite_floats(value, size: int, name: str) -> tuple | list:

@@ -99,9 +99,12 @@ def hand_placement_problem(
     scene: Scene, object_pose: np.ndarray, h: np.ndarray, tol: float
 ) -> str | None:
     """Why hand configuration ``h`` is not allowed with the object at ``object_pose``, or None
-    if it is: a hand body entering the support or overlapping the object by more than
-    ``tol`` (a length)."""
+    if it is: the object or a hand body entering the support, or a hand body overlapping the
+    object, by more than ``tol`` (a length)."""
     obj = geo.transform(object_pose, scene.object.vertices_B)
+    lowest = float(obj[:, 1].min())
+    if lowest < -tol:
+        return f"the object enters the support (lowest y = {lowest:.4g})"
     names = ("palm", "finger 1", "finger 2")
     for name, poly in zip(names, hand_polygons_W(scene, h), strict=True):
         lowest = float(poly[:, 1].min())

@@ -8,11 +8,14 @@ from typing import Any
 
 import numpy as np
 
-from grasp_env.arguments import is_real, short
+from grasp_env.arguments import number, short
 from grasp_env.core import kinematics as kin
-from grasp_env.core.scene import Scene
+from grasp_env.core.scene import LENGTH_RANGE, Scene
 from grasp_env.envs.observation import PALM_THETA_MAX, PALM_X_RANGE, PALM_Y_MAX
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES
+
+#: Largest aspect ratio of the shape randomizer: a 1:100 shape is already a thin plate.
+MAX_ASPECT = 100.0
 
 
 def placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:
@@ -46,43 +49,12 @@ def flag(value: Any, name: str) -> bool:
     return bool(value)
 
 
-def integer(value: Any, name: str, least: int, wrong_type: type = ValueError) -> int:
-    """An int (not a bool) of at least ``least``; ``wrong_type`` for a non-integer, else
-    ``ValueError``."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise wrong_type(f"{name} must be an integer >= {least}, got {value!r}")
-    if value < least:
-        raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
-    return int(value)
-
-
 def one_of(value: Any, name: str, choices, also: str = "") -> Any:
     """``value`` if it is one of ``choices``, else ``ValueError`` listing them (``also``
     names what else is allowed)."""
     if not isinstance(value, str) or value not in choices:
         raise ValueError(f"{name} must be {also}one of {list(choices)}, got {value!r}")
     return value
-
-
-def number(
-    value: Any,
-    name: str,
-    lo: float,
-    hi: float,
-    lo_open: bool = True,
-    hi_open: bool = False,
-) -> float:
-    if not is_real(value):
-        raise TypeError(f"{name} must be a number, got {short(value)}")
-    try:
-        x = float(value)
-    except OverflowError:  # an int beyond the float range
-        x = math.inf
-    ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)
-    if not ok:
-        interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-        raise ValueError(f"{name} must be finite and in {interval}, got {short(value)}")
-    return x
 
 
 def numbers(value: Any, name: str, size: int, lo: float, hi: float) -> np.ndarray:
@@ -117,7 +89,12 @@ def shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float]
             if lo < 3 or hi > max_vertices:
                 raise ValueError(f"{name} must lie in [3, max_vertices={max_vertices}]: {raw!r}")
             lo, hi = int(lo), int(hi)
-        if key == "aspect" and lo < 1.0:
-            raise ValueError(f"{name} must be >= 1, got {raw!r}")
+        if key == "aspect" and not 1.0 <= lo <= hi <= MAX_ASPECT:
+            raise ValueError(f"{name} must lie in [1, {MAX_ASPECT:g}], got {raw!r}")
+        if key == "size" and not LENGTH_RANGE[0] <= lo <= hi <= LENGTH_RANGE[1]:
+            raise ValueError(
+                f"{name} must lie in [{LENGTH_RANGE[0]:g}, {LENGTH_RANGE[1]:g}] palm widths "
+                f"(the scene's range of object sizes), got {raw!r}"
+            )
         out[key] = (lo, hi)
     return out

@@ -18,14 +18,12 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
-from grasp_env.arguments import real_vector, short
+from grasp_env.arguments import integer, number, real_vector, short
 from grasp_env.core.scene import Scene
 from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import State
 from grasp_env.envs.checks import (
     flag,
-    integer,
-    number,
     numbers,
     one_of,
     palm_problem,
@@ -52,7 +50,7 @@ from grasp_env.mechanics.closure import grip_objective, is_form_closure
 from grasp_env.planning import centred_placement, first_placement
 from grasp_env.render import Renderer
 from grasp_env.sim.proximity import hand_features
-from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator
+from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator, own_state
 
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
 #: (rad), finger angles (rad).
@@ -66,6 +64,12 @@ _PLACEMENTS = {"preliftoff": centred_placement, "random": centred_placement,
 _OPTION_KEYS = ("scene", "palm", "fingers")
 #: The reward's terms, in the order of ``info["reward_<term>"]``.
 REWARD_TERMS = ("form_closure", "hold", "grip", "lift", "drop", "ctrl")
+#: Largest reward weight: a step's reward stays far from the float range.
+MAX_REWARD_WEIGHT = 1e6
+#: Largest ``max_vertices`` (the observation has 3 entries per vertex).
+MAX_VERTICES = 1000
+#: Largest ``render_width`` and ``render_height``, in pixels.
+MAX_RENDER_SIZE = 16384
 
 
 @dataclass(slots=True)
@@ -248,21 +252,23 @@ class FrictionlessGraspEnv(gym.Env):
       name, whatever the working directory holds (:func:`grasp_env.load_scene`).
     * ``shape_randomizer``: None, True (default ranges) or a dict of ranges
       ``{"vertices": (3, 8), "size": (0.2, 0.45), "aspect": (1.0, 3.0), "mass": (0.05,
-      0.5)}`` (size: the polygon's diameter in palm widths; see
-      :func:`grasp_env.envs.shapes.random_convex_polygon`).
+      0.5)}`` (size: the polygon's diameter in palm widths, within [1e-3, 1e3]; aspect in
+      [1, 100]; see :func:`grasp_env.envs.shapes.random_convex_polygon`). Shapes whose hand
+      set-up puts the palm outside the palm workspace are drawn again, like those that
+      overlap the hand.
     * ``palm_control`` (False), ``max_finger_step`` (0.05 rad), ``max_palm_step`` ((0.02,
       0.02, 0.05): palm widths, palm widths, rad).
     * ``start``: ``"scene"`` (default), ``"preliftoff"``, ``"random"`` or ``"placement"``.
     * ``reward_form_closure_weight`` (10), ``reward_hold_weight`` (0), ``reward_grip_weight`` (0.1),
       ``reward_lift_weight`` (1), ``reward_drop_weight`` (10), ``reward_ctrl_weight`` (0),
-      ``gamma`` (0.99): see Rewards. Weights are finite and >= 0.
+      ``gamma`` (0.99): see Rewards. Weights lie in [0, ``MAX_REWARD_WEIGHT`` = 1e6].
     * ``contact_tol``: the simulator's contact tolerance, relative to the palm width (1e-9; in
       [1e-11, 1e-2)).
-    * ``max_vertices``: observation padding of the object's vertices (12).
+    * ``max_vertices``: observation padding of the object's vertices (12; at most 1000).
     * ``always_compute_grip``: also compute ``y*`` outside form closure (False: skipped).
     * ``hand_features``: append the hand features to the observation (False).
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
-      ``render_height`` (640, 480).
+      ``render_height`` (640, 480; 16 to 16384 pixels).
 
     ## Model
 
@@ -338,20 +344,20 @@ class FrictionlessGraspEnv(gym.Env):
             reward_lift_weight, reward_drop_weight, reward_ctrl_weight,
         )  # fmt: skip
         self.reward_weights = {
-            name: number(value, f"reward_{name}_weight", 0.0, math.inf, lo_open=False)
+            name: number(value, f"reward_{name}_weight", 0.0, MAX_REWARD_WEIGHT, lo_open=False)
             for name, value in zip(REWARD_TERMS, weights, strict=True)
         }
         self.gamma = number(gamma, "gamma", 0.0, 1.0)
         self.contact_tol = number(
             contact_tol, "contact_tol", *CONTACT_TOL_RANGE, lo_open=False, hi_open=True
         )
-        self.max_vertices = integer(max_vertices, "max_vertices", 3, TypeError)
+        self.max_vertices = integer(max_vertices, "max_vertices", 3, TypeError, MAX_VERTICES)
         if render_mode is not None:
             one_of(render_mode, "render_mode", self.metadata["render_modes"], "None or ")
         self.render_mode = render_mode
         self.render_size = (
-            integer(render_width, "render_width", 16),
-            integer(render_height, "render_height", 16),
+            integer(render_width, "render_width", 16, most=MAX_RENDER_SIZE),
+            integer(render_height, "render_height", 16, most=MAX_RENDER_SIZE),
         )
 
         specs = list(scene) if isinstance(scene, list | tuple) else [scene]
@@ -359,9 +365,10 @@ class FrictionlessGraspEnv(gym.Env):
             raise ValueError("scene must be a scene or a non-empty list of scenes, got []")
         self.scenes = [self._load(spec, "scene") for spec in specs]
         self.shape_ranges = shape_ranges(shape_randomizer, self.max_vertices)
+        self._shape_args = (self.shape_ranges, _palm_outside)
         if self.shape_ranges is not None:
             for base in self.scenes:  # fail now, not at a reset, if no shape fits a hand
-                random_shape_scene(np.random.default_rng(0), base, self.shape_ranges)
+                random_shape_scene(np.random.default_rng(0), base, *self._shape_args)
 
         self._sims: dict[int, Simulator] = {}
         self._placement_cache: dict[int, State] = {}
@@ -474,7 +481,12 @@ class FrictionlessGraspEnv(gym.Env):
         """The action as Python floats clipped into [-1, 1]; refused (``ValueError``) unless it
         is finite real numbers of the action space's shape."""
         size = self.action_space.shape[0]
-        if type(action) is np.ndarray and action.dtype.kind == "f" and action.shape == (size,):
+        if (
+            type(action) is np.ndarray
+            and action.dtype.kind == "f"
+            and action.dtype.itemsize <= 8  # tolist() gives Python floats
+            and action.shape == (size,)
+        ):
             values = action.tolist()  # the common case, checked as real_vector would
             total = sum(values)  # finite only if every value is (or on overflow: see below)
             if total - total == 0.0 and -1.0 <= min(values) and max(values) <= 1.0:
@@ -493,6 +505,8 @@ class FrictionlessGraspEnv(gym.Env):
         fail runs first, drawing from a copy of the generator, and is then committed."""
         opts = self._check_options(options)
         try:
+            if isinstance(seed, bool | np.bool_):
+                raise gym.error.Error  # seeding would take it for 0 or 1
             rng = _copy_generator(self.np_random) if seed is None else seeding.np_random(seed)[0]
         except gym.error.Error:
             raise ValueError(f"seed must be None or an int >= 0, got {short(seed)}") from None
@@ -530,7 +544,7 @@ class FrictionlessGraspEnv(gym.Env):
         else:
             idx = int(rng.integers(len(self.scenes))) if len(self.scenes) > 1 else 0
             if self.shape_ranges is not None:
-                scene = random_shape_scene(rng, self.scenes[idx], self.shape_ranges)
+                scene = random_shape_scene(rng, self.scenes[idx], *self._shape_args)
                 sim, key = Simulator(scene, contact_tol=self.contact_tol), None
             else:
                 scene, key = self.scenes[idx], idx
@@ -627,6 +641,7 @@ class FrictionlessGraspEnv(gym.Env):
         Raises:
             ValueError: a bad action (as :meth:`step`).
             TypeError: ``state`` is not a :class:`grasp_env.State`.
+            ValueError: ``state`` is of another scene than the current episode's.
             RuntimeError: called before the first :meth:`reset`.
             SimulationError, SolverError: where :meth:`step` would end the episode with
                 ``info["sim_error"]``.
@@ -634,8 +649,7 @@ class FrictionlessGraspEnv(gym.Env):
         a = self._check_action(action)
         if self._sim is None:
             raise RuntimeError("call reset() before simulate_action()")
-        if not isinstance(state, State):
-            raise TypeError(f"state must be a grasp_env.State, got {short(state)}")
+        own_state(state, self._sim.scene)
         real_vector(state.hand, "state.hand", 5)  # the move's target is made from it
         return self._simulate(state, a)
 
@@ -826,6 +840,12 @@ class FrictionlessGraspEnv(gym.Env):
 
 
 _REWARD_KEYS = tuple(f"reward_{k}" for k in REWARD_TERMS)
+
+
+def _palm_outside(scene: Scene) -> str | None:
+    """Why the scene's palm pose lies outside the palm workspace (None if inside)."""
+    problem = palm_problem(scene, scene.palm.pose)
+    return problem and f"palm.pose {problem}"
 
 
 # ---------------------------------------------------------------------- helpers

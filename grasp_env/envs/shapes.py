@@ -10,6 +10,7 @@ longer finger's reach of the support, fingers hanging). Randomness comes only fr
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -142,12 +143,16 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
 
 
 def random_shape_scene(
-    rng: np.random.Generator, base: Scene, ranges: dict[str, tuple[float, float]] | None = None
+    rng: np.random.Generator,
+    base: Scene,
+    ranges: dict[str, tuple[float, float]] | None = None,
+    problem: Callable[[Scene], str | None] | None = None,
 ) -> Scene:
     """A random object (:func:`random_convex_polygon`, mass uniform in ``ranges["mass"]``) at
     ``base``'s object position, in the hand set-up of :func:`hand_setup`.
 
-    Shapes that overlap the hand there are skipped.
+    Shapes that overlap the hand there are skipped, and so are those for which ``problem``
+    (if given) names one.
 
     Raises:
         ValueError: no shape out of ``MAX_SHAPE_TRIES`` fits the hand.
@@ -168,9 +173,13 @@ def random_shape_scene(
             d["fingers"][k]["angle"] = float(h[3 + k])
         d["object"] = {"vertices": v.tolist(), "mass": mass}
         try:
-            return load_scene(d)
+            scene = load_scene(d)
         except SceneError as exc:  # overlaps the hand: draw another
             last = exc
+            continue
+        last = problem(scene) if problem is not None else None
+        if last is None:
+            return scene
     raise ValueError(
         f"shape_randomizer {r!r}: no random shape out of {MAX_SHAPE_TRIES} fits the hand of "
         f"scene {base.name!r} (last: {last})"

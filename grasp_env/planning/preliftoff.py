@@ -126,7 +126,7 @@ def _tipping_candidates(sim: Simulator, palm_angles, n_q: int, sides):
                 if q_move is None:
                     continue
                 h[2 + move] = q_move
-                if kin.hand_placement_problem(scene, q_obj, h, 10 * tol) is not None:
+                if kin.hand_placement_problem(scene, q_obj, h, tol) is not None:
                     continue
                 try:
                     state = sim.settle(q_obj, h)
@@ -244,7 +244,7 @@ def scoop_placement(sim: Simulator, palm_angle: float = 0.0) -> State | None:
         if q is None:
             return None
         h[2 + finger] = q
-    if kin.hand_placement_problem(scene, q_obj, h, 10 * sim.tol) is not None:
+    if kin.hand_placement_problem(scene, q_obj, h, sim.tol) is not None:
         return None
     try:
         state = sim.settle(q_obj, h)

@@ -119,6 +119,16 @@ KWARGS = [
     ("gamma_above_one", {"gamma": 1.5}, r"gamma", r"1\.5"),
     ("scene_empty_list", {"scene": []}, r"scene", r"\[\]"),
     ("render_width_small", {"render_width": 4}, r"render_width", r"4"),
+    ("render_height_huge", {"render_height": 10**9}, r"render_height", r"1000000000"),
+    ("max_vertices_huge", {"max_vertices": 10**15}, r"max_vertices", r"1000000000000000"),
+    ("reward_weight_huge", {"reward_ctrl_weight": 1e308}, r"reward_ctrl_weight", r"1e\+308"),
+    ("randomizer_size_huge", {"shape_randomizer": {"size": (0.2, 1e300)}},
+     r"shape_randomizer\['size'\]", r"1e\+300"),
+    ("randomizer_aspect_sliver", {"shape_randomizer": {"aspect": (1e6, 1e7)}},
+     r"shape_randomizer\['aspect'\]", r"1000000\.0"),
+    # shapes this large overlap the hand or put the palm above its workspace (y <= 3 w)
+    ("randomizer_palm_outside", {"shape_randomizer": {"size": (5.0, 10.0)}},
+     r"shape_randomizer", r"\(5\.0, 10\.0\).*no random shape"),
 ]  # fmt: skip
 
 OPTIONS = [
@@ -162,6 +172,7 @@ SEEDS = [
     ("seed_float", 1.5, r"seed", r"1\.5"),
     ("seed_string", "3", r"seed", r"'3'"),
     ("seed_complex", 3j, r"seed", r"3j"),
+    ("seed_bool", True, r"seed", r"True"),
 ]
 
 ACTIONS = [
@@ -187,6 +198,7 @@ ACTIONS = [
     ("action_nan_float32", np.array([0, 0, np.nan, 0, 0], np.float32), r"action", r"nan"),
     ("action_nan_last", np.array([0.5, 0, 0, 0, np.nan]), r"action", r"nan"),
     ("action_infs_cancelling", np.array([np.inf, -np.inf, 0, 0, 0]), r"action", r"inf"),
+    ("action_masked", np.ma.masked_array([0.1] * 5, [0, 1, 0, 0, 0]), r"action", r"masked"),
 ]
 
 
@@ -306,6 +318,30 @@ def test_refused_reset_keeps_the_random_generator() -> None:
     (o1, i1), (o2, i2) = env.reset(), twin.reset()
     np.testing.assert_array_equal(o1, o2)
     np.testing.assert_array_equal(i1["palm_pose"], i2["palm_pose"])
+
+
+@pytest.mark.parametrize(
+    "convert",
+    [lambda a: a.astype(np.longdouble), lambda a: np.ma.masked_array(a), lambda a: a.tolist()],
+    ids=["longdouble", "masked_nothing_masked", "list"],
+)
+def test_other_real_action_types_act_as_float64(convert) -> None:
+    env, twin = twin_envs()
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        a = rng.uniform(-1, 1, env.action_space.shape)
+        got, want = env.step(convert(a)), twin.step(a)
+        np.testing.assert_array_equal(got[0], want[0])
+        assert got[1] == want[1]
+
+
+def test_a_state_of_another_scene_is_refused() -> None:
+    env, twin = twin_envs()
+    other = FrictionlessGraspEnv(scene="square")
+    other.reset(seed=0)
+    with pytest.raises(ValueError, match="state is of scene 'square', not of 'fig13'"):
+        env.simulate_action(other.state, np.zeros(env.action_space.shape))
+    assert_same_after(env, twin)
 
 
 def test_out_of_range_action_is_clipped_not_refused() -> None:

@@ -985,10 +985,31 @@ def test_tighter_tolerance_agrees_at_lift_off() -> None:
     np.testing.assert_allclose(tight.object_pose, ref.object_pose, atol=1e-9)
 
 
-@pytest.mark.parametrize("tol", [1e-12, 0.0, -1e-9, 0.01, float("nan"), "1e-9"])
+@pytest.mark.parametrize("tol", [1e-12, 0.0, -1e-9, 0.01, float("nan")])
 def test_contact_tol_out_of_range_refused(tol) -> None:
-    with pytest.raises(ValueError, match=r"contact_tol must be in \[1e-11, 0.01\)"):
+    with pytest.raises(ValueError, match=r"contact_tol must be finite and in \[1e-11, 0.01\)"):
         Simulator(scene_of("fig13"), contact_tol=tol)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "needle"),
+    [
+        ({"contact_tol": "1e-9"}, TypeError, "contact_tol must be a number, got '1e-9'"),
+        ({"max_step": True}, TypeError, "max_step must be a number, got True"),
+        ({"fall_step": 0.0}, ValueError, r"fall_step must be finite and in \(0, 1\], got 0.0"),
+        ({"max_iterations": 10**30}, ValueError, r"max_iterations must be an integer in \[1, "),
+        ({"max_solves": 2.5}, ValueError, "max_solves must be an integer >= 1, got 2.5"),
+    ],
+)
+def test_bad_simulator_settings_are_named(kwargs, error, needle) -> None:
+    with pytest.raises(error, match=needle):
+        Simulator(scene_of("fig13"), **kwargs)
+
+
+def test_numpy_scalar_settings_are_numbers() -> None:
+    sim = Simulator(scene_of("fig13"), contact_tol=np.float32(1e-9), max_solves=np.int64(50))
+    assert sim.tol == pytest.approx(1e-9 * sim.scene.palm.width, rel=1e-7)
+    assert sim.max_solves == 50 and type(sim.max_solves) is int
 
 
 # ---------------------------------------------------------------------------------------
@@ -1444,3 +1465,40 @@ def test_work_limit_is_validated() -> None:
     for bad in (0, -1, 2.5, "10", None, True):
         with pytest.raises(ValueError, match="max_solves"):
             Simulator(scene_of("fig13"), max_solves=bad)
+
+
+@pytest.mark.parametrize(
+    ("shift", "fingers", "needle"),
+    [
+        ((0.0, -0.5, 0.0), None, "the object enters the support"),
+        ((0.2, 0.0, 0.0), None, "the finger 2 overlaps the object by 0.01"),
+        ((0.0, 0.0, 0.0), (3.5, -1.5), r"finger angles \[3.5, -1.5\] outside the joint limits"),
+    ],
+)
+def test_settle_refuses_overlapping_bodies(shift, fingers, needle) -> None:
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    hand = start.hand.copy()
+    if fingers is not None:
+        hand[3:] = fingers
+    with pytest.raises(ValueError, match=needle):
+        sim.settle(start.object_pose + shift, hand)
+
+
+def test_settle_takes_bodies_within_the_contact_tolerance() -> None:
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    # half a tolerance into the support: touching, not overlapping
+    state = sim.settle(start.object_pose - (0.0, 0.5 * sim.tol, 0.0), start.hand)
+    assert {c.body for c in state.contacts} == {"support"}
+    with pytest.raises(ValueError, match="the object enters the support"):
+        sim.settle(start.object_pose - (0.0, 2 * sim.tol, 0.0), start.hand)
+
+
+def test_a_state_of_another_scene_is_not_moved() -> None:
+    sim = Simulator(grasp_env.load_scene("fig13"))
+    again = Simulator(grasp_env.load_scene("fig13")).reset()  # the same file loaded again
+    with pytest.raises(ValueError, match="state is of scene 'fig13', not of 'fig13'"):
+        sim.move_hand(again, fingers=(-1.0, -2.1))
+    with pytest.raises(TypeError, match=r"state must be a grasp_env\.State, got dict"):
+        sim.move_hand({"hand": again.hand}, fingers=(-1.0, -2.1))
