@@ -43,6 +43,14 @@ def body_poses_W(scene: Scene, h: np.ndarray) -> np.ndarray:
     )
 
 
+def hand_units(scene: Scene) -> np.ndarray:
+    """The unit of each hand coordinate ``(x_p, y_p, theta_p, q1, q2)``: the palm width for
+    the palm's position, a radian for the angles. A hand difference divided by it compares
+    with a scale-free tolerance."""
+    w = scene.palm.width
+    return np.array([w, w, 1.0, 1.0, 1.0])
+
+
 def hand_polygons_W(scene: Scene, h: np.ndarray) -> list[np.ndarray]:
     """World polygons (CCW) of palm, finger 1 and finger 2 for hand configuration ``h``."""
     poses = body_poses_W(scene, h)

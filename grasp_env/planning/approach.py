@@ -168,6 +168,7 @@ def _path_moves_nothing(sim: Simulator, state: State, path: list[np.ndarray]) ->
     except ComputationError:
         return False
     return bool(
-        np.abs(state.hand - path[-1]).max() < 1e-9 * sim.size
+        np.abs((state.hand - path[-1]) / kin.hand_units(sim.scene)).max()
+        < 1e-9 * sim.size / sim.scene.palm.width
         and np.abs(state.object_pose - start.object_pose).max() < 1e-9 * sim.size
     )

@@ -44,6 +44,7 @@ class FourContactBranch:
     def solve(self, q1: float, z0: np.ndarray) -> np.ndarray | None:
         sim, z = self.sim, z0.copy()
         scale = np.array([1.0, 1.0, 1.0 / sim.rho, 1.0 / sim.size])
+        unit = kin.hand_units(sim.scene)[[0, 1, 2, 4]]  # (x, y) in palm widths, angles in rad
         for _ in range(40):
             h = self.config(q1, z)
             pl = ct.Placement(sim.scene, z[:3], h)
@@ -62,8 +63,8 @@ class FourContactBranch:
             except np.linalg.LinAlgError:
                 return None
             z = z + dz
-            if not np.all(np.isfinite(z)) or np.abs(dz).max() > 1.0:
-                return None
+            if not np.all(np.isfinite(z)) or np.abs(dz / unit).max() > 1.0:
+                return None  # diverging: a step over a palm width or a radian
         return None
 
     def config(self, q1: float, z: np.ndarray) -> np.ndarray:

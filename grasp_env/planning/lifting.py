@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
 from grasp_env.mechanics.width import object_width
 from grasp_env.planning.plan import (
@@ -139,7 +140,7 @@ def _admissible(nxt: State | None, prev: State, lifted: bool, width: float) -> b
     """The simulator followed the increment, the hand moved, the object was not dropped, and
     once the finger gap is narrower than the object's width with the object off the support it
     stays so (unless the grasp closed)."""
-    if nxt is None or np.abs(nxt.hand - prev.hand).max() <= 1e-12:
+    if nxt is None or np.abs((nxt.hand - prev.hand) / kin.hand_units(prev.scene)).max() <= 1e-12:
         return False
     if (lifted or not prev.on_support) and nxt.on_support:
         return False

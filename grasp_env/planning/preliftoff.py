@@ -132,7 +132,7 @@ def _tipping_candidates(sim: Simulator, palm_angles, n_q: int, sides):
                     state = sim.settle(q_obj, h)
                 except ComputationError:
                     continue
-                if np.abs(state.object_pose - q_obj).max() > 1e-9:
+                if np.abs(state.object_pose - q_obj).max() > 1e-9 * sim.size:
                     continue
                 finger = f"finger{move}"
                 touch = [c for c in state.contacts if c.body == finger]
@@ -390,10 +390,13 @@ def squeeze_tips(sim: Simulator, state: State, dq: float = 1e-3) -> tuple[bool, 
     dh = np.array([0.0, 0.0, 0.0, dq, -dq])
     V = mech.V_ob(p, n, state.object_pose[:2])
     xi = mech.xi(sim.scene, state.hand, dh, b, p, n)
-    res = motion_lp(V, xi, sim.scene.object_weight)
+    # In the simulator's units (moments per palm width, velocities per palm width), whose
+    # LP tolerances are unit-free; the twist comes back as (v_x / w, v_y / w, omega).
+    w = sim.scene.palm.width
+    res = motion_lp(V * sim.model.per_length, xi / w, sim.scene.object_weight)
     if res.status != "optimal":
         return False, []
-    moves = np.abs(res.velocity).max() > 1e-9 * sim.size
+    moves = np.abs(res.velocity).max() * w > 1e-9 * sim.size
     weight = sim.scene.object_weight
     broken = [
         i

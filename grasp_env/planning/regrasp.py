@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from grasp_env.core import geometry as geo
+from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
 
 #: A hand move: the state reached from ``state`` by the hand increment ``dh`` (shape (5,)),
@@ -165,6 +166,7 @@ def explore_lift(
         archive.setdefault(_cell(st), i)
     chosen: dict[tuple, int] = {}
     moves = 0
+    units = kin.hand_units(starts[0].scene)
 
     def weight(cell: tuple) -> float:
         lift = max(_lowest(nodes[archive[cell]][0]), 0.0) / w
@@ -193,7 +195,7 @@ def explore_lift(
                 new = move(state, dh)
                 if new is None:
                     break
-                if np.abs(new.hand - state.hand).max() <= 1e-12:
+                if np.abs((new.hand - state.hand) / units).max() <= 1e-12:
                     break
                 if new.on_support and not state.on_support:
                     break

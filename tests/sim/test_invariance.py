@@ -32,7 +32,7 @@ import pytest
 import yaml
 
 import grasp_env
-from grasp_env import Simulator, testing
+from grasp_env import Simulator, planning, testing
 from grasp_env.core import scene as scene_mod
 from grasp_env.errors import SceneError
 from grasp_env.mechanics import closure as mech
@@ -461,3 +461,33 @@ def test_transformations_are_involutions() -> None:
     t0 = testing.hand_polygons_W(s0, s0.initial_hand)["finger2"]
     t1 = testing.hand_polygons_W(s1, s1.initial_hand)["finger1"]
     assert {tuple(p) for p in np.round(t0 * [-1, 1], 12)} == {tuple(p) for p in np.round(t1, 12)}
+
+
+# ---------------------------------------------------------------------------------------
+# The planner
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def fig13_plan() -> planning.Plan:
+    return planning.plan_grasp(grasp_env.load_scene(raw("fig13")))
+
+
+@pytest.mark.parametrize("k", [1e-6, 1e-3, 1e3, 1e6], ids=lambda k: f"k{k:g}")
+def test_plan_invariance_over_accepted_range(fig13_plan, k: float) -> None:
+    """The paper's planner on fig13 with every length times k (densities kept): the same
+    placement, phases and number of steps, the hand path and object poses times k, and y* / W
+    as at k = 1, through the grip adjustment to its local minimum."""
+    a = fig13_plan
+    b = planning.plan_grasp(grasp_env.load_scene(scale_scene(raw("fig13"), k)))
+    assert a.success and b.status == a.status and b.placement == a.placement
+    assert [s.phase for s in b.steps] == [s.phase for s in a.steps]
+    wa, wb = a.steps[0].state.scene.object_weight, b.steps[0].state.scene.object_weight
+    for sa, sb in zip(a.steps, b.steps, strict=True):
+        np.testing.assert_allclose(scale_hand(sb.state.hand, 1 / k), sa.state.hand, atol=POSE_RTOL)
+        np.testing.assert_allclose(
+            sb.state.object_pose / [k, k, 1.0], sa.state.object_pose, atol=POSE_RTOL
+        )
+        # y* where the plan computed it (nan: not computed, inf: no grasp)
+        assert sb.grip / wb == pytest.approx(sa.grip / wa, rel=GRIP_RTOL, nan_ok=True)
+    assert b.steps[-1].grip / wb == pytest.approx(1.4939660, rel=1e-6)  # the paper's 1.49
