@@ -39,7 +39,7 @@ import numpy as np
 
 import grasp_env
 from agents.train_ppo import MODEL_DIR, load_agent
-from grasp_env.cli import HelpFormatter, nonnegative_int, positive_int
+from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.envs.shapes import WIDE_SHAPE_RANGES
 
@@ -484,6 +484,11 @@ def _one_thread() -> None:
     torch.set_num_threads(1)
 
 
+#: Most ``--workers`` accepted: 4 processes per CPU. More only queue for the CPUs, each one
+#: holding an env, a torch runtime and the agents in memory.
+MAX_WORKERS = 4 * (os.cpu_count() or 1)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m agents.evaluate",
@@ -527,10 +532,17 @@ def main(argv: list[str] | None = None) -> None:
         "--scene", "--scenes", dest="scenes", nargs="+", help="bundled scenes (default: all)"
     )
     parser.add_argument("--max-steps", type=positive_int, help="episode length (the env's: 200)")
-    parser.add_argument("--workers", type=positive_int, default=1, help="processes")
+    parser.add_argument(
+        "--workers",
+        type=positive_int,
+        default=1,
+        help=f"processes, at most 4 x the CPUs = {MAX_WORKERS}",
+    )
     parser.add_argument("--out", default="runs/evaluation", help="output directory")
     parser.add_argument("--no-scripted", action="store_true", help="leave the planner out")
     args = parser.parse_args(argv)
+    if args.workers > MAX_WORKERS:
+        parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
     try:
         specs = default_policies(args.models, args.rllib_checkpoint)
     except ValueError as exc:
@@ -541,6 +553,8 @@ def main(argv: list[str] | None = None) -> None:
     for scene in args.scenes or []:
         if scene not in known:
             parser.error(f"--scenes {scene!r} is not a bundled scene; choose from {known}")
+    if problem := out_dir_problem(Path(args.out)):
+        parser.error(f"--out {problem}")
     rows = evaluate(
         specs,
         Path(args.out),

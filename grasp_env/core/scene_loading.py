@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib.resources
 import math
 import os
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -56,6 +57,56 @@ def _scenes_dir() -> Traversable:
 #: imported from a zip file). The environment variable ``GRASP_ENV_SCENES``, read at import,
 #: replaces it by another folder.
 SCENES_DIR = _scenes_dir()
+
+#: Numbers as YAML 1.2's core schema reads them, decimal forms only: integers, and decimals
+#: with an optional exponent (``1e1`` is 10.0), ``.inf`` and ``.nan``. PyYAML follows YAML 1.1,
+#: which reads ``1e1`` as a string, ``010`` as 8, ``9_81`` as 981 and ``1:30`` as 90; here
+#: ``010`` is 10, and ``9_81``, ``1:30`` and hexadecimal stay strings, which number fields refuse.
+_INT = re.compile(r"^[-+]?[0-9]+$")
+_FLOAT = re.compile(
+    r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+    r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+)
+_INT_TAG = "tag:yaml.org,2002:int"
+_FLOAT_TAG = "tag:yaml.org,2002:float"
+_MERGE_TAG = "tag:yaml.org,2002:merge"
+
+
+class _SceneLoader(yaml.SafeLoader):
+    """PyYAML's safe loader with YAML 1.2 numbers (``_INT``, ``_FLOAT``) and no duplicate keys
+    (YAML forbids them; PyYAML would keep the last silently, e.g. a second ``palm:`` block)."""
+
+    def construct_mapping(self, node: yaml.Node, deep: bool = False) -> dict:
+        if isinstance(node, yaml.MappingNode):
+            first: dict[Any, int] = {}
+            for key_node, _ in node.value:
+                if isinstance(key_node, yaml.ScalarNode) and key_node.tag != _MERGE_TAG:
+                    key = self.construct_object(key_node)
+                    line = key_node.start_mark.line + 1
+                    if key in first:
+                        raise SceneError(
+                            f"duplicate key {key!r} on line {line} (first on line {first[key]})"
+                        )
+                    first[key] = line
+        return super().construct_mapping(node, deep=deep)
+
+    def construct_yaml_int(self, node: yaml.Node) -> int:
+        """A decimal integer (YAML 1.1 would read ``010`` as octal)."""
+        text = self.construct_scalar(node)
+        if not _INT.match(text):  # an explicit !!int tag on something else
+            raise yaml.constructor.ConstructorError(
+                None, None, f"{text!r} is not a decimal integer", node.start_mark
+            )
+        return int(text)
+
+
+_SceneLoader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_SceneLoader.add_implicit_resolver(_INT_TAG, _INT, list("-+0123456789"))
+_SceneLoader.add_implicit_resolver(_FLOAT_TAG, _FLOAT, list("-+.0123456789"))
+_SceneLoader.add_constructor(_INT_TAG, _SceneLoader.construct_yaml_int)
 
 _TOP_KEYS = {"name", "description", "gravity", "palm", "fingers", "object"}
 _PALM_KEYS = {"width", "thickness", "pose", "density"}
@@ -186,31 +237,43 @@ def _finger(d: Any, i: int, width: float) -> FingerSpec:
     )
 
 
-def _object(d: Any, width: float) -> ObjectSpec:
-    _check_keys(d, _OBJECT_KEYS, {"vertices"}, "object")
-    raw = d["vertices"]
+def convex_polygon(raw: Any, name: str, width: float | None = None) -> np.ndarray:
+    """``raw`` as a new ``(n, 2)`` float array: at least 3 points of two real, finite numbers,
+    counter-clockwise, strictly convex, winding once (no star polygon) and no point repeated;
+    else :class:`SceneError` naming ``name`` and showing the value.
+
+    The scene's checks of ``object.vertices`` that do not depend on the rest of the scene, for
+    every function that takes a polygon. With ``width`` (the palm width) coordinates beyond
+    ``MAX_COORDINATE`` palm widths are refused too, before the shape checks, whose arithmetic
+    such values could overflow.
+    """
     if not isinstance(raw, list | tuple | np.ndarray) or len(raw) < 3:
-        raise SceneError(f"object.vertices must be a list of at least 3 [x, y] points, got {raw!r}")
-    v = np.array([_vector(p, f"object.vertices[{i}]", 2) for i, p in enumerate(raw)])
-    _coordinates(v, "object.vertices", width)
+        raise SceneError(f"{name} must be a list of at least 3 [x, y] points, got {raw!r}")
+    v = np.array([_vector(p, f"{name}[{i}]", 2) for i, p in enumerate(raw)])
+    if width is not None:
+        _coordinates(v, name, width)
     edge = geo.norms(geo.edge_vectors(v))
     scale = float(np.ptp(v, axis=0).max())
     for i in np.flatnonzero(edge <= 1e-9 * max(scale, 1e-300)):
         j = (i + 1) % len(v)
-        raise SceneError(f"object.vertices[{i}] and [{j}] repeat the point {v[i].tolist()}")
-    area = geo.polygon_area(v)
-    if area < 0:
-        raise SceneError(
-            f"object.vertices are clockwise; give them counter-clockwise: {v.tolist()}"
-        )
+        raise SceneError(f"{name}[{i}] and [{j}] repeat the point {v[i].tolist()}")
+    if geo.polygon_area(v) < 0:
+        raise SceneError(f"{name} are clockwise; give them counter-clockwise: {v.tolist()}")
     if not geo.is_convex_ccw(v) or not geo.turns_once(v):
-        raise SceneError(f"object.vertices do not form a strictly convex polygon: {v.tolist()}")
+        raise SceneError(f"{name} do not form a strictly convex polygon: {v.tolist()}")
+    return v
+
+
+def _object(d: Any, width: float) -> ObjectSpec:
+    _check_keys(d, _OBJECT_KEYS, {"vertices"}, "object")
+    v = convex_polygon(d["vertices"], "object.vertices", width)
     if "density" in d and "mass" in d:
         raise SceneError(
             f"object: give either density ({d['density']!r}) or mass ({d['mass']!r}), not both"
         )
     size = "object.vertices: the object's size (largest extent)"
-    _within(scale, size, LENGTH_RANGE, "palm.width", width)
+    _within(float(np.ptp(v, axis=0).max()), size, LENGTH_RANGE, "palm.width", width)
+    area = geo.polygon_area(v)
     if "mass" in d:
         mass = _number(d["mass"], "object.mass", positive=True)
         if not DENSITY_RANGE[0] <= mass / area <= DENSITY_RANGE[1]:
@@ -378,7 +441,9 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
     except UnicodeDecodeError as exc:
         raise SceneError(f"scene file {str(path)!r} is not UTF-8 text: {exc.reason}") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_SceneLoader)
     except yaml.YAMLError as exc:
         raise SceneError(f"scene file {str(path)!r} is not valid YAML: {exc}") from None
+    except SceneError as exc:  # a duplicate key
+        raise SceneError(f"scene file {str(path)!r}: {exc}") from None
     return scene_from_dict(data, source=str(path))

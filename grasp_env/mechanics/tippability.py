@@ -74,10 +74,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
+from grasp_env.arguments import number, real_vector
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene import Scene
 from grasp_env.mechanics.width import object_vertices_W
@@ -94,6 +95,31 @@ Side = Literal["left", "right"]
 
 #: Default tolerance: lengths relative to the object's size, angles and normals absolute.
 DEFAULT_TOL = 1e-9
+#: Bound on ``tol`` (exclusive): a hundredth of the object's size, or 0.01 rad. Beyond it the
+#: tolerance rather than the object decides the regions (at ``tol >= 1`` every vertex counts
+#: as on the support and both regions are empty).
+MAX_TOL = 1e-2
+
+
+def _tolerance(tol: Any) -> float:
+    """``tol`` as a float in ``[0, MAX_TOL)``: TypeError for a non-number (a bool too),
+    ValueError for NaN or a value outside, each naming ``tol``."""
+    return number(tol, "tol", 0.0, MAX_TOL, lo_open=False, hi_open=True)
+
+
+def _vector2(value: Any, name: str) -> np.ndarray:
+    """``value`` as 2 finite floats: a finite float array of shape (2,) as it is (the fast
+    path of the planner's calls), anything else through :func:`real_vector`, which refuses
+    malformed input with a ValueError naming ``name``."""
+    if (
+        type(value) is np.ndarray  # not a subclass: a masked array goes to real_vector
+        and value.shape == (2,)
+        and value.dtype.kind == "f"
+        and math.isfinite(value[0])
+        and math.isfinite(value[1])
+    ):
+        return value
+    return real_vector(value, name, 2)
 
 
 def _wrap(angle: float) -> float:
@@ -194,14 +220,19 @@ class TippabilityRegion:
                 here). At an edge-interior point it must equal that edge's inward normal to
                 within ``tol``; at a vertex (within ``tol`` times the object's size) its angle
                 must lie in the vertex's interval.
-            tol: tolerance; open ends of the region shrink by it, closed ends grow by it
-                (module docstring).
+            tol: tolerance, in ``[0, MAX_TOL)``; open ends of the region shrink by it,
+                closed ends grow by it (module docstring).
 
         Returns:
             True when the contact is in the region.
+
+        Raises:
+            ValueError: ``point_W`` or ``normal_W`` is not 2 real, finite numbers, or the
+                normal is zero; ``tol`` is out of range (TypeError if not a number).
         """
-        p_W = np.asarray(point_W, dtype=float)
-        n_W = np.asarray(normal_W, dtype=float)
+        tol = _tolerance(tol)
+        p_W = _vector2(point_W, "point_W")
+        n_W = _vector2(normal_W, "normal_W")
         norm = float(np.hypot(n_W[0], n_W[1]))
         if not norm > 0.0:
             raise ValueError(f"normal_W must be a non-zero vector, got {normal_W!r}")
@@ -264,15 +295,15 @@ def support_contacts(
 
     Args:
         scene_or_vertices: a scene or an ``(n, 2)`` CCW convex polygon in the world frame.
-        tol: relative height tolerance.
+        tol: relative height tolerance, in ``[0, MAX_TOL)``.
 
     Returns:
         ``(support, p_WL, p_WR)``: the support vertex indices (increasing; one or two), and
         the left and right support contacts, each shape (2,) (the same point when the object
         rests on a single vertex).
     """
-    v = object_vertices_W(scene_or_vertices)
-    return _support(v, tol)
+    tol = _tolerance(tol)
+    return _support(object_vertices_W(scene_or_vertices), tol)
 
 
 def _support(v: np.ndarray, tol: float) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
@@ -378,10 +409,18 @@ def tippability_regions(
             is used) or an ``(n, 2)`` array of the object's CCW vertices in the world frame,
             resting on the support (its lowest vertices define the supporting edge).
         tol: lengths relative to the object's size and angles (radians) below which a
-            subregion counts as empty or a vertex counts as on the support.
+            subregion counts as empty or a vertex counts as on the support; a real number in
+            ``[0, MAX_TOL)`` = ``[0, 0.01)``: larger ones would blur the regions away.
 
     Returns:
         ``(left, right)`` :class:`TippabilityRegion` objects.
+
+    Raises:
+        SceneError: a ``ValueError``: ``scene_or_vertices`` is not a valid polygon (see
+            :func:`~grasp_env.mechanics.width.object_vertices_W`).
+        ValueError: ``tol`` is NaN, negative or at least ``MAX_TOL``.
+        TypeError: ``tol`` is not a real number (a bool, a string, None).
     """
+    tol = _tolerance(tol)
     v = object_vertices_W(scene_or_vertices)
     return _region(v, "left", tol), _region(v, "right", tol)

@@ -18,6 +18,7 @@ import numpy as np
 
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene import Scene
+from grasp_env.core.scene_loading import convex_polygon
 
 __all__ = ["object_vertices_W", "object_width", "width_direction"]
 
@@ -35,27 +36,14 @@ def object_vertices_W(scene_or_vertices: Scene | np.ndarray) -> np.ndarray:
         A float64 array of shape ``(n, 2)`` (a copy).
 
     Raises:
-        TypeError: the argument is neither a scene nor array-like.
-        ValueError: wrong shape, non-finite values, or not a strictly convex CCW polygon
-            (the message gives the value).
+        SceneError: a ``ValueError`` naming ``scene_or_vertices`` and showing the value: the
+            polygon checks of a scene's ``object.vertices``
+            (:func:`~grasp_env.core.scene_loading.convex_polygon`; real, finite coordinates,
+            no repeated point, counter-clockwise, strictly convex, not a star).
     """
     if isinstance(scene_or_vertices, Scene):
         return np.array(scene_or_vertices.object.vertices_W0, dtype=float)
-    try:
-        v = np.array(scene_or_vertices, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(
-            f"expected a Scene or an (n, 2) vertex array, got {scene_or_vertices!r}"
-        ) from exc
-    if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3:
-        raise ValueError(f"vertices must have shape (n, 2) with n >= 3, got shape {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"vertices must be finite, got {v.tolist()}")
-    if not geo.is_convex_ccw(v):
-        raise ValueError(
-            f"vertices must form a strictly convex counter-clockwise polygon, got {v.tolist()}"
-        )
-    return v
+    return convex_polygon(scene_or_vertices, "scene_or_vertices")
 
 
 def _min_width(vertices_W: np.ndarray) -> tuple[float, np.ndarray]:

@@ -343,6 +343,44 @@ def test_evaluation_writes_all_outputs(trained, tmp_path, capsys):
     assert len(rows) == 1 + 2 * (1 + 2)  # header + 2 policies x (1 scene + 2 shapes)
 
 
+@pytest.mark.parametrize(
+    ("where", "message"),
+    [
+        (lambda tmp: tmp / "file", "exists and is not a directory"),
+        (lambda tmp: tmp / "file" / "sub", "cannot be created"),
+        (lambda tmp: Path("/proc/x"), "cannot be created"),
+    ],
+    ids=["existing-file", "under-a-file", "proc"],
+)
+def test_evaluation_refuses_a_bad_out_before_any_episode(
+    where, message, tmp_path, capsys, monkeypatch
+):
+    (tmp_path / "file").write_text("")
+    out = where(tmp_path)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: pytest.fail("episodes ran"))
+    with pytest.raises(SystemExit) as info:
+        ev.main(["--models", "--scenes", "fig13", "--out", str(out)])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert f"error: --out {out} {message}" in err and "Traceback" not in err
+
+
+def test_evaluation_refuses_more_workers_than_its_bound(capsys, monkeypatch):
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: pytest.fail("episodes ran"))
+    monkeypatch.setenv("COLUMNS", "200")  # --help on one line per option
+    with pytest.raises(SystemExit) as info:
+        ev.main(["--models", "--workers", str(ev.MAX_WORKERS + 1)])
+    assert info.value.code == 2
+    assert (
+        f"error: --workers must be at most 4 x the CPUs = {ev.MAX_WORKERS}, "
+        f"got {ev.MAX_WORKERS + 1}" in capsys.readouterr().err
+    )
+    assert ev.MAX_WORKERS == 4 * (os.cpu_count() or 1)
+    with pytest.raises(SystemExit):
+        ev.main(["--help"])
+    assert f"at most 4 x the CPUs = {ev.MAX_WORKERS}" in capsys.readouterr().out
+
+
 def test_policies_meet_the_same_heldout_shapes():
     vertices = slice(13, 13 + 2 * 12)  # object vertices in the observation
     obs = [

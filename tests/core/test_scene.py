@@ -1018,12 +1018,15 @@ YAML_EDITS = [
         r"palm\.pose\[0\] must be finite, got nan",
         id="nan-pose",
     ),
-    # YAML 1.1 (PyYAML) reads an exponent without a dot as a string: the message shows it.
+    # YAML 1.1 reads these as 981, 90 and 16; the loader, following YAML 1.2, as strings.
     pytest.param(
-        "gravity: 9.81",
-        "gravity: 1e1",
-        r"gravity must be a number, got '1e1'",
-        id="exponent-no-dot",
+        "gravity: 9.81", "gravity: 9_81", r"gravity must be a number, got '9_81'", id="underscore"
+    ),
+    pytest.param(
+        "gravity: 9.81", "gravity: 1:30", r"gravity must be a number, got '1:30'", id="sexagesimal"
+    ),
+    pytest.param(
+        "gravity: 9.81", "gravity: 0x10", r"gravity must be a number, got '0x10'", id="hex"
     ),
 ]
 
@@ -1037,6 +1040,52 @@ def test_bad_number_in_yaml_file_is_refused(
     path = tmp_path / "edited.yaml"
     path.write_text(text.replace(old, new))
     with pytest.raises(SceneError, match=pattern):
+        load_scene(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "value"),
+    [("1e1", 10.0), ("1.5E+1", 15.0), ("010", 10.0), ("+9.81", 9.81), ("9.", 9.0)],
+    ids=["exponent-no-dot", "exponent", "leading-zero", "plus-sign", "trailing-dot"],
+)
+def test_yaml_numbers_are_read_as_yaml_1_2(tmp_path: Path, text: str, value: float) -> None:
+    # YAML 1.1 (PyYAML's default) reads 1e1 as the string '1e1' and 010 as the octal 8.
+    path = tmp_path / "edited.yaml"
+    path.write_text(
+        (SCENES_DIR / "fig13.yaml").read_text().replace("gravity: 9.81", f"gravity: {text}")
+    )
+    assert load_scene(path).gravity == value
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "pattern"),
+    [
+        pytest.param(
+            "fingers:",
+            "palm: {width: 2.0, pose: [0.0, 1.0, 0.0]}\nfingers:",
+            r"duplicate key 'palm' on line 29 \(first on line 24\)",
+            id="top-level-block",
+        ),
+        pytest.param(
+            "  density: 1.0\nfingers:",
+            "  density: 1.0\n  width: 2.0\nfingers:",
+            r"duplicate key 'width' on line 29 \(first on line 25\)",
+            id="nested",
+        ),
+        pytest.param(
+            "{length: 0.6,",
+            "{length: 0.6, length: 0.5,",
+            r"duplicate key 'length' on line 30 \(first on line 30\)",
+            id="flow-mapping",
+        ),
+    ],
+)
+def test_duplicate_yaml_key_is_refused(tmp_path: Path, old: str, new: str, pattern: str) -> None:
+    text = (SCENES_DIR / "fig13.yaml").read_text()
+    assert text.count(old) == 1
+    path = tmp_path / "duplicate.yaml"
+    path.write_text(text.replace(old, new))
+    with pytest.raises(SceneError, match=rf"scene file .*duplicate\.yaml': {pattern}"):
         load_scene(path)
 
 

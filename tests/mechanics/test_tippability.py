@@ -12,6 +12,7 @@ c > 0 drives c_L to zero while c_R and b are still >= 0 (and mirror for the left
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -22,7 +23,8 @@ from scipy.spatial import ConvexHull, QhullError
 
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene_loading import scene_from_dict
-from grasp_env.mechanics.tippability import support_contacts, tippability_regions
+from grasp_env.errors import SceneError
+from grasp_env.mechanics.tippability import MAX_TOL, support_contacts, tippability_regions
 
 # ----------------------------------------------------------------------------------------
 # Independent helpers: polygons, admissible contacts and the statics oracle
@@ -376,6 +378,74 @@ def test_contains_rejects_zero_normal() -> None:
         right.contains([0.0, 0.5], [0.0, 0.0])
 
 
+@pytest.mark.parametrize(
+    ("point", "normal", "pattern"),
+    [
+        (None, None, r"point_W must be 2 real numbers, got None"),
+        ([1.0], [-1.0, 0.0], r"point_W must be 2 real numbers, got \[1\.0\]"),
+        ([1.0, 0.5, 0.0], [-1.0, 0.0], r"point_W must be 2 real numbers"),
+        (np.array([1.0, math.nan]), [-1.0, 0.0], r"point_W must be finite"),
+        ([1.0, 0.5], ["-1", "0"], r"normal_W must be real numbers"),
+        ([1.0, 0.5], np.array([True, False]), r"normal_W must be real numbers"),
+        (np.array([1.0, 0.5]), np.zeros(3), r"normal_W must be 2 real numbers"),
+        (np.ma.array([1.0, 0.5], mask=[False, True]), [-1.0, 0.0], r"point_W .* masked"),
+    ],
+    ids=[
+        "none",
+        "short-point",
+        "long-point",
+        "nan-point",
+        "str-normal",
+        "bool-normal",
+        "long-normal",
+        "masked-point",
+    ],
+)
+def test_contains_refuses_malformed_point_or_normal(point, normal, pattern: str) -> None:
+    _, right = tippability_regions(SQUARE)
+    with pytest.raises(ValueError, match=pattern):
+        right.contains(point, normal)
+
+
+def test_contains_takes_any_real_pair() -> None:
+    # Triangle edge 1: left region t in (1/2, 1] (see test_open_end_shrinks_by_tol).
+    left, _ = tippability_regions(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
+    s2 = math.sqrt(0.5)
+    assert left.contains(np.array([0.25, 0.75]), np.array([-s2, -s2]))
+    assert left.contains((0.25, 0.75), [-s2, -s2])
+    assert left.contains(np.array([0.25, 0.75], dtype=np.float32), [-1, -1])  # normalised here
+    assert not left.contains([0.75, 0.25], (-s2, -s2))
+
+
+BAD_TOLS = [
+    pytest.param(math.nan, ValueError, id="nan"),
+    pytest.param(-1.0, ValueError, id="negative"),
+    pytest.param(1e10, ValueError, id="huge"),
+    pytest.param(MAX_TOL, ValueError, id="bound"),
+    pytest.param("a", TypeError, id="str"),
+    pytest.param(None, TypeError, id="none"),
+    pytest.param(True, TypeError, id="bool"),
+]
+
+
+@pytest.mark.parametrize(("tol", "error"), BAD_TOLS)
+def test_bad_tol_is_refused(tol, error: type) -> None:
+    pattern = rf"tol must be .*got {re.escape(repr(tol))}"
+    with pytest.raises(error, match=pattern):
+        tippability_regions(SQUARE, tol=tol)
+    with pytest.raises(error, match=pattern):
+        support_contacts(SQUARE, tol=tol)
+    _, right = tippability_regions(SQUARE)
+    with pytest.raises(error, match=pattern):
+        right.contains([1.0, 0.5], [1.0, 0.0], tol=tol)
+
+
+@pytest.mark.parametrize("tol", [0.0, 0, 0.999 * MAX_TOL], ids=["zero", "int-zero", "near-bound"])
+def test_tol_range_is_accepted(tol) -> None:
+    assert tippability_regions(SQUARE, tol=tol) == tippability_regions(SQUARE)
+    assert support_contacts(SQUARE, tol=tol)[0] == (0, 1)
+
+
 def test_open_end_shrinks_by_tol() -> None:
     # Triangle edge 1: left region t in (1/2, 1]; points within tol of t = 1/2 are refused.
     left, _ = tippability_regions(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
@@ -392,12 +462,18 @@ def test_open_end_shrinks_by_tol() -> None:
         [[0.0, 0.0], [1.0, 0.0]],
         [[0.0, 0.0], [1.0, 0.0], [math.nan, 1.0]],
         [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]],  # collinear
+        [[math.cos(k * 4 * math.pi / 5), math.sin(k * 4 * math.pi / 5)] for k in range(5)],
+        [[0.0, 0.0], [1.0, 0.0], ["0", "1"]],
+        [[0.0, 0.0], [1.0, 0.0], [False, True]],
     ],
-    ids=["clockwise", "two-vertices", "nan", "collinear"],
+    ids=["clockwise", "two-vertices", "nan", "collinear", "pentagram", "str", "bool"],
 )
 def test_bad_vertices_raise(bad) -> None:
-    with pytest.raises(ValueError, match="vertices"):
-        tippability_regions(np.array(bad))
+    # The scene loader's checks of object.vertices (a SceneError is a ValueError).
+    with pytest.raises(SceneError, match="scene_or_vertices"):
+        tippability_regions(bad)
+    with pytest.raises(SceneError, match="scene_or_vertices"):
+        support_contacts(bad)
 
 
 def test_scene_input_matches_world_vertices() -> None:

@@ -14,6 +14,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene_loading import scene_from_dict
+from grasp_env.errors import SceneError
 from grasp_env.mechanics.width import object_width, width_direction
 
 
@@ -77,26 +78,46 @@ def test_analytic_widths(name: str) -> None:
     assert proj.max() - proj.min() == pytest.approx(expected, rel=1e-12)
 
 
+SCENE = {
+    "palm": {"width": 1.0, "pose": [0.0, 0.85, 0.0]},
+    "fingers": [{"length": 0.6, "angle": -1.5708}, {"length": 0.7, "angle": -1.5708}],
+    "object": {"vertices": [[-0.2, 0.0], [0.2, 0.0], [0.2, 0.3], [-0.2, 0.3]]},
+}
+
+
 def test_scene_input() -> None:
-    scene = scene_from_dict(
-        {
-            "palm": {"width": 1.0, "pose": [0.0, 0.85, 0.0]},
-            "fingers": [{"length": 0.6, "angle": -1.5708}, {"length": 0.7, "angle": -1.5708}],
-            "object": {"vertices": [[-0.2, 0.0], [0.2, 0.0], [0.2, 0.3], [-0.2, 0.3]]},
-        }
-    )
+    scene = scene_from_dict(SCENE)
     assert object_width(scene) == pytest.approx(0.3, rel=1e-12)
     assert object_width(scene) == object_width(scene.object.vertices_W0)
 
 
+#: A pentagram: every turn is to the left, but it winds twice (the scene loader refuses it).
+PENTAGRAM = [[math.cos(k * 4 * math.pi / 5), math.sin(k * 4 * math.pi / 5)] for k in range(5)]
+
+
 @pytest.mark.parametrize(
-    "bad",
-    [[[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]], [[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0, 0.0]] * 3],
-    ids=["clockwise", "two-vertices", "3d"],
+    ("bad", "pattern"),
+    [
+        ([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]], r"clockwise"),
+        ([[0.0, 0.0], [1.0, 0.0]], r"at least 3"),
+        ([[0.0, 0.0, 0.0]] * 3, r"\[0\] must be a list of 2 numbers"),
+        (PENTAGRAM, r"strictly convex"),
+        ([[0.0, 0.0], [1.0, 0.0], ["1", "1"], [0.0, 1.0]], r"\[2\]\[0\] must be a number, got '1'"),
+        (
+            [[0.0, 0.0], [True, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            r"\[1\]\[0\] must be a number, got True",
+        ),
+        ("fig13", r"at least 3 \[x, y\] points, got 'fig13'"),
+    ],
+    ids=["clockwise", "two-vertices", "3d", "pentagram", "str", "bool", "name"],
 )
-def test_bad_input_raises(bad) -> None:
-    with pytest.raises(ValueError, match="vertices"):
-        object_width(np.array(bad))
+def test_bad_input_raises(bad, pattern: str) -> None:
+    # The scene loader's checks of object.vertices, naming the argument.
+    for f in (object_width, width_direction):
+        with pytest.raises(SceneError, match=rf"scene_or_vertices.*{pattern}"):
+            f(bad)
+    with pytest.raises(SceneError):
+        scene_from_dict({**SCENE, "object": {"vertices": bad}})
 
 
 @st.composite
