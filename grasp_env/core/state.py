@@ -15,16 +15,20 @@ Normals always point into the object; gaps are positive when the bodies are apar
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 import numpy as np
 
+from grasp_env.arguments import real_vector, short
 from grasp_env.core.geometry import BODY_NAMES
 from grasp_env.core.scene import Scene
 
 EDGE, TIP = 0, 1
 KIND_NAMES = ("edge", "tip")
+#: How far from 1 the length of a contact normal built by hand may be.
+UNIT_TOL = 1e-9
 
 #: The names a contact's body and kind, and an event's kind, take.
 BodyName = Literal["support", "palm", "finger1", "finger2"]
@@ -70,6 +74,19 @@ class Contact:
     object_feature: int
     hand_feature: int
     gap: float = 0.0
+
+    def __post_init__(self) -> None:
+        """Check a contact built by hand (the simulator fills in its own directly)."""
+        if self.body not in BODY_NAMES:
+            raise ValueError(f"contact body must be one of {list(BODY_NAMES)}, got {self.body!r}")
+        if self.kind not in KIND_NAMES:
+            raise ValueError(f"contact kind must be one of {list(KIND_NAMES)}, got {self.kind!r}")
+        point = real_vector(self.point, "contact point", 2)
+        normal = real_vector(self.normal, "contact normal", 2)
+        if abs(math.hypot(*normal) - 1.0) > UNIT_TOL:
+            raise ValueError(f"contact normal must be a unit vector, got {normal.tolist()}")
+        object.__setattr__(self, "point", point)
+        object.__setattr__(self, "normal", normal)
 
     @property
     def key(self) -> ContactKey:
@@ -138,6 +155,18 @@ class State:
     _arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(
         default=None, init=False, repr=False
     )
+
+    def __post_init__(self) -> None:
+        """Check a state built by hand (the simulator fills in its own directly)."""
+        if not isinstance(self.scene, Scene):
+            raise TypeError(f"state scene must be a grasp_env.Scene, got {short(self.scene)}")
+        object.__setattr__(self, "object_pose", real_vector(self.object_pose, "object_pose", 3))
+        object.__setattr__(self, "hand", real_vector(self.hand, "hand", 5))
+        contacts = tuple(self.contacts)
+        for c in contacts:
+            if not isinstance(c, Contact):
+                raise TypeError(f"state contacts must be grasp_env.Contact, got {short(c)}")
+        object.__setattr__(self, "contacts", contacts)
 
     @property
     def on_support(self) -> bool:

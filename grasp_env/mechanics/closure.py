@@ -13,9 +13,11 @@ Object velocities are twists ``(vx, vy, omega)`` of the centre of mass; hand vel
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
+from grasp_env.arguments import short
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import Scene
@@ -119,7 +121,14 @@ def finger_gravity_moments(scene: Scene, h: np.ndarray) -> np.ndarray:
     return out
 
 
+def _is_state(state: Any) -> None:
+    """Refuse anything but a :class:`State` (a state built by hand checks its own fields)."""
+    if not isinstance(state, State):
+        raise TypeError(f"state must be a grasp_env.State, got {short(state)}")
+
+
 def _state_arrays(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    _is_state(state)
     p, n, b = state.contact_arrays()
     return p, n, b, V_ob(p, n, state.object_pose[:2])
 
@@ -160,6 +169,7 @@ def is_form_closure(state: State) -> bool:
     ``[n_i, r_i x n_i / rho]`` (the rows positively span R^3); :func:`escape_direction`
     (HiGHS) gives the same answer and, when there is one, the twist that escapes.
     """
+    _is_state(state)
     points, normals, _ = state.contact_arrays()
     com = np.asarray(state.object_pose, dtype=float)  # V_ob reads its x and y
     V = constraint_matrix(points, normals, com)
@@ -185,6 +195,8 @@ def is_force_closure(state: State) -> bool:
     Solved for ``c / weight`` with moments in units of weight x palm width (dimensionless).
     """
     _, _, _, V = _state_arrays(state)
+    if len(V) == 0:
+        return False  # nothing holds the object up
     A = _equilibrium_rows(V, state.scene.palm.width)
     res = lp.solve(np.zeros(len(V)), A_eq=A, b_eq=_UNIT_GRAVITY, bounds=(0, None))
     return res.status == "optimal"

@@ -314,17 +314,19 @@ def _support(v: np.ndarray, tol: float) -> tuple[tuple[int, ...], np.ndarray, np
 
 
 def _arc_intersect(
-    lo: float, hi: float, lo_closed: bool, hi_closed: bool, centre: float
+    lo: float, hi: float, lo_closed: bool, hi_closed: bool, centre: float, tol: float
 ) -> tuple[float, float, bool, bool] | None:
     """Intersect the arc ``[lo, hi]`` (``hi - lo < pi``) with the open arc ``centre -+ pi/2``.
 
-    Angles are relative to the cone start; the open arc is taken modulo 2 pi. Returns the
-    intersection ``(lo, hi, lo_closed, hi_closed)`` or None when it is empty.
+    Angles are relative to the cone start; the open arc is taken modulo 2 pi. An end within
+    ``tol`` of the open arc's end is that end, open: which of two angles that agree to
+    rounding is the larger is not a decision. Returns the intersection ``(lo, hi,
+    lo_closed, hi_closed)`` or None when it is empty.
     """
     for shift in (-2.0 * math.pi, 0.0, 2.0 * math.pi):
         a, b = centre + shift - math.pi / 2, centre + shift + math.pi / 2
-        new_lo, new_lo_closed = (lo, lo_closed) if lo > a else (a, False)
-        new_hi, new_hi_closed = (hi, hi_closed) if hi < b else (b, False)
+        new_lo, new_lo_closed = (lo, lo_closed) if lo > a + tol else (a, False)
+        new_hi, new_hi_closed = (hi, hi_closed) if hi < b - tol else (b, False)
         if new_hi > new_lo:
             return new_lo, new_hi, new_lo_closed, new_hi_closed
     return None
@@ -376,7 +378,7 @@ def _region(v: np.ndarray, side: Side, tol: float) -> TippabilityRegion:
         for w in ((sgn, 0.0), (sgn * r[1], -sgn * r[0])):
             if arc is None:
                 break
-            arc = _arc_intersect(*arc, centre=math.atan2(w[1], w[0]) - theta_in)
+            arc = _arc_intersect(*arc, centre=math.atan2(w[1], w[0]) - theta_in, tol=tol)
         if arc is None or arc[1] - arc[0] <= tol:
             continue
         lo, hi, lo_closed, hi_closed = arc

@@ -955,3 +955,77 @@ def test_least_norm_infeasible_raises():
     with pytest.raises(SolverError) as exc:
         qp.least_norm(np.zeros((0, 3)), np.zeros(0), C, np.array([1.0, 0.0]))
     assert exc.value.status == "infeasible"
+
+
+# ---------------------------------------------------------------------------------------
+# Bad input to the public analysis functions
+# ---------------------------------------------------------------------------------------
+
+ANALYSES = [
+    grasp_env.is_form_closure,
+    grasp_env.is_force_closure,
+    grasp_env.grip_objective,
+    grasp_env.escape_direction,
+]
+
+
+@pytest.mark.parametrize("analysis", ANALYSES, ids=lambda f: f.__name__)
+def test_a_state_without_contacts_is_free(analysis) -> None:
+    """Nothing touches the object: no closure, no grip, and some twist escapes."""
+    start = grasp_env.Simulator("fig13").reset()
+    free = State(start.scene, start.object_pose, start.hand)
+    expected = {
+        "is_form_closure": False,
+        "is_force_closure": False,
+        "grip_objective": math.inf,
+    }.get(analysis.__name__)
+    got = analysis(free)
+    if expected is None:
+        assert got is not None and np.linalg.norm(got) > 0
+    else:
+        assert got == expected
+
+
+@pytest.mark.parametrize("analysis", ANALYSES, ids=lambda f: f.__name__)
+@pytest.mark.parametrize("bad", [None, "state", {"contacts": ()}], ids=repr)
+def test_anything_but_a_state_is_named(analysis, bad) -> None:
+    with pytest.raises(TypeError, match=r"state must be a grasp_env\.State, got"):
+        analysis(bad)
+
+
+@pytest.mark.parametrize(
+    ("build", "error", "needle"),
+    [
+        (lambda s: State(s.scene, [np.nan, 0.2, 0.0], s.hand), ValueError, "object_pose must"),
+        (lambda s: State(s.scene, s.object_pose, s.hand[:4]), ValueError, "hand must be 5"),
+        (lambda s: State("fig13", s.object_pose, s.hand), TypeError, "state scene must be"),
+        (lambda s: State(s.scene, s.object_pose, s.hand, (1,)), TypeError, "contacts must be"),
+        (
+            lambda s: Contact("finger1", "tip", np.zeros(2), np.zeros(2), 0.0, 0, 0),
+            ValueError,
+            r"contact normal must be a unit vector, got \[0.0, 0.0\]",
+        ),
+        (
+            lambda s: Contact("thumb", "tip", np.zeros(2), np.array([0.0, 1.0]), 0.0, 0, 0),
+            ValueError,
+            "contact body must be one of",
+        ),
+        (
+            lambda s: Contact("palm", "edge", [np.inf, 0.0], [0.0, 1.0], 0.0, 0, 0),
+            ValueError,
+            "contact point must be finite",
+        ),
+    ],
+)
+def test_a_state_built_by_hand_is_checked(build, error, needle) -> None:
+    start = grasp_env.Simulator("fig13").reset()
+    with pytest.raises(error, match=needle):
+        build(start)
+
+
+def test_a_state_built_by_hand_takes_sequences() -> None:
+    start = grasp_env.Simulator("fig13").reset()
+    contacts = [replace(c) for c in start.contacts]  # rebuilt through the checks
+    built = State(start.scene, list(start.object_pose), tuple(start.hand), contacts)
+    assert isinstance(built.object_pose, np.ndarray) and isinstance(built.contacts, tuple)
+    assert grasp_env.grip_objective(built) == grasp_env.grip_objective(start)

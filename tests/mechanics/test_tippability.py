@@ -642,3 +642,45 @@ def test_right_region_agrees_with_paper_formulas(v: np.ndarray) -> None:
         assert math.remainder(s.angle_max - hi, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
         assert s.angle_max - s.angle_min == pytest.approx(hi - lo, abs=1e-9)
     assert not got, f"vertex subregions the paper does not have: {got}"
+
+
+#: A regular hexagon on an edge: the line along edge 2's inward normal through vertex 2
+#: passes exactly through the left support contact (vertex 0), so that vertex's arc ends
+#: on the moment half-plane's boundary.
+HEXAGON = np.array(
+    [[-0.1, 0.0], [0.1, 0.0], [0.2, 0.1 * math.sqrt(3)], [0.1, 0.2 * math.sqrt(3)],
+     [-0.1, 0.2 * math.sqrt(3)], [-0.2, 0.1 * math.sqrt(3)]]
+)  # fmt: skip
+
+
+def _region_shape(region) -> tuple:
+    """What a region is: its subregions, and its support contact from vertex 0 in units of
+    the object's size."""
+    size = np.ptp(region.vertices_W, axis=0).max()
+    return (
+        [(e.edge, round(e.t_start, 9), round(e.t_end, 9)) for e in region.edges],
+        [
+            (s.vertex, round(s.angle_min, 9), round(s.angle_max, 9), s.min_closed, s.max_closed)
+            for s in region.vertices
+        ],
+        tuple(np.round((region.contact_W - region.vertices_W[0]) / size, 9)),
+    )
+
+
+@pytest.mark.parametrize("k", [1e-3, 0.01, 0.1, 3.0, 7.0, 1e3])
+@pytest.mark.parametrize("dx", [0.0, 0.37])
+def test_a_boundary_on_a_tie_does_not_depend_on_rounding(k: float, dx: float) -> None:
+    """Scaled by k and shifted by dx (object sizes), the hexagon's regions are the same; the
+    tie itself is outside (the pushing force's moment about the support contact is zero, and
+    the region needs a strictly tipping one)."""
+    size = np.ptp(HEXAGON, axis=0).max()
+    v = (HEXAGON + np.array([dx * size, 0.0])) * k
+    left, right = tippability_regions(v)
+    ref_left, ref_right = tippability_regions(HEXAGON)
+    assert _region_shape(left) == _region_shape(ref_left)
+    assert _region_shape(right) == _region_shape(ref_right)
+    d = v[3] - v[2]
+    n = np.array([-d[1], d[0]]) / np.hypot(*d)  # edge 2's inward normal
+    r = v[2] - v[0]
+    assert abs(r[0] * n[1] - r[1] * n[0]) <= 1e-12 * k  # the moment vanishes: a tie
+    assert not left.contains(v[2], n)
