@@ -18,10 +18,13 @@ from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES
 MAX_ASPECT = 100.0
 
 
-def placement_problem(scene: Scene, object_pose: np.ndarray, hand: np.ndarray) -> str | None:
+def placement_problem(
+    scene: Scene, object_pose: np.ndarray, hand: np.ndarray, contact_tol: float
+) -> str | None:
     """Why a hand configuration is not allowed with the object at ``object_pose`` (None if
-    it is), at the default contact tolerance."""
-    return kin.hand_placement_problem(scene, object_pose, hand, 1e-9 * scene.palm.width)
+    it is), at the simulator's contact tolerance ``contact_tol`` (relative to the palm width),
+    as the simulator's ``settle`` checks it."""
+    return kin.hand_placement_problem(scene, object_pose, hand, contact_tol * scene.palm.width)
 
 
 def palm_problem(scene: Scene, palm: np.ndarray) -> str | None:

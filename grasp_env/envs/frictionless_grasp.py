@@ -365,7 +365,7 @@ class FrictionlessGraspEnv(gym.Env):
             raise ValueError("scene must be a scene or a non-empty list of scenes, got []")
         self.scenes = [self._load(spec, "scene") for spec in specs]
         self.shape_ranges = shape_ranges(shape_randomizer, self.max_vertices)
-        self._shape_args = (self.shape_ranges, _palm_outside)
+        self._shape_args = (self.shape_ranges, self._shape_problem)
         if self.shape_ranges is not None:
             for base in self.scenes:  # fail now, not at a reset, if no shape fits a hand
                 random_shape_scene(np.random.default_rng(0), base, *self._shape_args)
@@ -428,13 +428,26 @@ class FrictionlessGraspEnv(gym.Env):
         if problem:
             raise ValueError(f"{name} {spec_name(spec)}: palm.pose {problem}")
         if self.start != "scene":
-            problem = placement_problem(scene, scene.object.start_pose, hand_setup(scene))
+            problem = placement_problem(
+                scene, scene.object.start_pose, hand_setup(scene), self.contact_tol
+            )
             if problem:
                 raise ValueError(
                     f"{name} {spec_name(spec)}: start={self.start!r} needs the pre-liftoff hand "
                     f"set-up, but there {problem}"
                 )
         return scene
+
+    def _shape_problem(self, scene: Scene) -> str | None:
+        """Why a random shape's scene cannot start an episode (None if it can): its palm
+        outside the palm workspace, or its hand set-up touching the object closer than the
+        simulator's contact tolerance allows (the scene loader checks at the default one)."""
+        problem = palm_problem(scene, scene.palm.pose)
+        if problem:
+            return f"palm.pose {problem}"
+        return placement_problem(
+            scene, scene.object.start_pose, scene.initial_hand, self.contact_tol
+        )
 
     def _check_options(self, options: Any) -> dict[str, Any]:
         if options is None:
@@ -470,7 +483,7 @@ class FrictionlessGraspEnv(gym.Env):
                     f"options['fingers'] {q.tolist()} is outside the joint limits {lim.tolist()}"
                 )
             h[3:] = q
-        problem = placement_problem(scene, scene.object.start_pose, h)
+        problem = placement_problem(scene, scene.object.start_pose, h, self.contact_tol)
         if problem:
             raise ValueError(
                 f"options palm={h[:3].tolist()}, fingers={h[3:].tolist()} refused: {problem}"
@@ -585,7 +598,7 @@ class FrictionlessGraspEnv(gym.Env):
         for _ in range(RANDOM_START_TRIES):
             h = state.hand + rng.uniform(-1.0, 1.0, 5) * scale
             h[3:] = np.clip(h[3:], lim[:, 0], lim[:, 1])
-            if placement_problem(scene, state.object_pose, h) is None:
+            if placement_problem(scene, state.object_pose, h, self.contact_tol) is None:
                 try:
                     return sim.settle(state.object_pose, h)
                 except ComputationError:
@@ -840,12 +853,6 @@ class FrictionlessGraspEnv(gym.Env):
 
 
 _REWARD_KEYS = tuple(f"reward_{k}" for k in REWARD_TERMS)
-
-
-def _palm_outside(scene: Scene) -> str | None:
-    """Why the scene's palm pose lies outside the palm workspace (None if inside)."""
-    problem = palm_problem(scene, scene.palm.pose)
-    return problem and f"palm.pose {problem}"
 
 
 # ---------------------------------------------------------------------- helpers

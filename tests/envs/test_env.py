@@ -291,7 +291,10 @@ def test_simulate_action_checks_and_clips_like_step():
         env.simulate_action(state, np.zeros(5))
     with pytest.raises(TypeError, match=r"state must be a grasp_env\.State"):
         env.simulate_action(state.hand, np.zeros(2))
-    bad = dataclasses.replace(state, hand=np.array([0.0, 0.5, math.nan, -1.0, -1.0]))
+    with pytest.raises(ValueError, match=r"hand must be finite.*nan"):  # built by hand
+        dataclasses.replace(state, hand=np.array([0.0, 0.5, math.nan, -1.0, -1.0]))
+    bad = dataclasses.replace(state)
+    bad.hand[2] = math.nan  # its arrays are writable
     with pytest.raises(ValueError, match=r"state\.hand.*nan"):
         env.simulate_action(bad, np.zeros(2))
 
