@@ -160,8 +160,11 @@ class State:
         """Check a state built by hand (the simulator fills in its own directly)."""
         if not isinstance(self.scene, Scene):
             raise TypeError(f"state scene must be a grasp_env.Scene, got {short(self.scene)}")
-        object.__setattr__(self, "object_pose", real_vector(self.object_pose, "object_pose", 3))
-        object.__setattr__(self, "hand", real_vector(self.hand, "hand", 5))
+        for name, size in (("object_pose", 3), ("hand", 5)):
+            value = getattr(self, name)
+            checked = real_vector(value, name, size)
+            if type(value) is not np.ndarray or value.dtype != np.float64:
+                object.__setattr__(self, name, checked)  # else kept: the same array
         contacts = tuple(self.contacts)
         for c in contacts:
             if not isinstance(c, Contact):
