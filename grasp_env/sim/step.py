@@ -220,6 +220,20 @@ def trigger_value(model, q, h, E, kind: int, key: np.ndarray) -> float:
 
 
 @njit(cache=CACHE)
+def short_of_band(model, q, h, E, kind: int, key: np.ndarray) -> bool:
+    """Whether the check ``(kind, key)`` lies clearly inside its limit at ``(q, h)``, below
+    its band ``[-tol, tol]``. A lost contact's check is minus the least force, whichever
+    contact bears it: all of ``E``'s forces are then clearly positive."""
+    if kind == LOST_CONTACT:
+        kinds, values, keys = checks(model, q, h, E)
+        for i in range(kinds.shape[0]):
+            if kinds[i] == LOST_CONTACT:
+                return values[i] < -model.tol
+        return False
+    return trigger_value(model, q, h, E, kind, key) < -model.tol
+
+
+@njit(cache=CACHE)
 def band_target(start: float, tol: float) -> float:
     """The value an event search aims its check at, given the check's value ``start`` at the
     consistent end of the bracket: the middle of the band's consistent half, ``-tol / 2``
@@ -264,6 +278,12 @@ def locate(
     :func:`band_target` (regula falsi with the Illinois rule: an end kept twice in a row has
     its value halved), and the midpoint whenever the check is not known at both ends (a
     failed solve, the equilibrium residual, another check taking over).
+
+    A bracket that closes to rounding with the trigger's check still short of its band at
+    the consistent end is no event of that check: the check jumped, and so did the pose,
+    from one root of ``E``'s equations to another -- the two roots that meet at a fold (the
+    contact normals turning concurrent), where the forces pass through infinity, not
+    through zero, and change sign. Nothing consistent lies beyond: a ``JAM``.
     """
     q_lo = q
     start = trigger_value(model, q, h0 + s_lo * dh, E, kind, key)
@@ -274,6 +294,8 @@ def locate(
     for _ in range(200):
         mid = false_position(s_lo, s_hi, lo_value, hi_value)
         if mid <= s_lo or mid >= s_hi:
+            if short_of_band(model, q_lo, h0 + s_lo * dh, E, kind, key):
+                kind, key = JAM, NONE  # the check jumped over its band: a fold
             break
         h = h0 + mid * dh
         q_mid, ok = solve_pose(model, q_lo + v * (mid - s_lo), h, E, solves)

@@ -24,10 +24,12 @@ from grasp_env.envs.shapes import hand_setup, scene_to_dict
 
 ROOT = Path(__file__).resolve().parents[2]
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
-#: Scenes whose plan needs palm motion: a tilted-palm placement (square, heavy_square,
-#: triangle; the policy moves the palm there first) or exploratory lifting with palm moves
-#: (tall_rectangle). The policy lifts them only with ``palm_control=True``.
-NEEDS_PALM = {"square", "heavy_square", "triangle", "tall_rectangle"}
+#: Tippable scenes the planner does not lift: every placement wedges the object (a fold of
+#: the contact normals, a jam) or leaves it resting (docs/reproduction.md).
+WEDGED = {"square", "heavy_square", "triangle"}
+#: Scenes whose plan needs palm motion: exploratory lifting with palm moves
+#: (tall_rectangle). The policy lifts it only with ``palm_control=True``.
+NEEDS_PALM = {"tall_rectangle"}
 
 
 @pytest.fixture(scope="module")
@@ -188,6 +190,8 @@ def test_scripted_policy_act_before_reset_is_a_clear_error():
 
 
 def _xfail(scene: str, palm_control: bool) -> list:
+    if scene in WEDGED:
+        return [pytest.mark.xfail(strict=True, reason="the planner finds no lift: it wedges")]
     if scene in NEEDS_PALM and not palm_control:
         reason = "the plan needs palm motion: only with palm_control=True"
         return [pytest.mark.xfail(strict=True, reason=reason)]
@@ -214,7 +218,7 @@ def test_scripted_policy_succeeds_on_every_tippable_scene(scene, start):
 )
 def test_scripted_policy_lifts_with_palm_motion(scene, start):
     # ~1-2 min a scene: the whole planner's search for a placement (cached for the 2nd
-    # start), then a tilted-palm placement or (tall_rectangle) exploratory lifting
+    # start), then exploratory lifting
     info, first_success, steps = _run_policy(scene, True, start)
     assert info["is_success"] and not info["dropped"]
     assert first_success is not None and first_success < steps  # then it held on

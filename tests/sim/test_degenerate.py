@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from scipy.optimize import minimize_scalar
 from scipy.spatial import ConvexHull
 
@@ -378,3 +379,71 @@ def test_nearly_straight_resting_edge_through_the_env() -> None:
         state = env.unwrapped.state
         assert state.events == ()
         assert state.finger_angles[0] == pytest.approx(-HALF_PI + k * 0.05)
+
+
+#: The bundled square tilted-palm placement whose squeeze wedges the object: finger 1's edge
+#: on the square's left side, finger 2's tip on its right side, the object resting on its
+#: base. Squeezing turns the contact normals concurrent (a fold): the forces that hold the
+#: object grow without bound, so no motion avoids penetration -- a jam.
+SQUARE_FOLD = {
+    "pose": [0.0, 0.15, 0.0],
+    "hand": [0.32876130738160625, 0.5255149227663095, -0.4, -1.2141526834298952,
+             -2.322046743957673],
+    "fingers": [-1.1941526834298952, -2.342046743957673],
+}  # fmt: skip
+
+
+def _square(scale: float = 1.0, dx: float = 0.0) -> tuple[Simulator, grasp_env.State]:
+    """The fold's start, every length times ``scale`` and shifted by ``dx`` palm widths
+    (densities over scale^2, so the weight stays): rounding-level changes of the same move."""
+    raw = yaml.safe_load((Path(grasp_env.__file__).parent / "scenes" / "square.yaml").read_text())
+    raw["palm"]["width"] *= scale
+    raw["palm"]["thickness"] = raw["palm"].get("thickness", 0.15) * scale
+    raw["palm"]["pose"] = [
+        (raw["palm"]["pose"][0] + dx) * scale,
+        raw["palm"]["pose"][1] * scale,
+        0.0,
+    ]
+    for f in raw["fingers"]:
+        f["length"] *= scale
+        f["thickness"] = f.get("thickness", 0.05) * scale
+        f.pop("torque_limits", None)
+    raw["object"]["vertices"] = [
+        [(x + dx) * scale, y * scale] for x, y in raw["object"]["vertices"]
+    ]
+    for body in (raw["palm"], *raw["fingers"], raw["object"]):
+        body["density"] = body.get("density", 1.0) / scale**2
+    sim = Simulator(grasp_env.load_scene(raw))
+    shift = np.array([dx, 0.0, 0.0, 0.0, 0.0])
+    pose = (np.array(SQUARE_FOLD["pose"]) + shift[:3]) * [scale, scale, 1.0]
+    hand = (np.array(SQUARE_FOLD["hand"]) + shift) * [scale, scale, 1.0, 1.0, 1.0]
+    return sim, sim.settle(pose, hand)
+
+
+@pytest.mark.parametrize(
+    ("scale", "dx"), [(1.0, 0.0), (1.0 + 1e-12, 0.0), (1.0, 0.37), (1e3, 0.0), (1e-3, 0.0)]
+)
+def test_a_fold_is_a_jam_whatever_the_rounding(scale: float, dx: float) -> None:
+    """Squeezing into the fold jams, at the same place for every rounding of the same move.
+    Checked independently: the three contact wrenches are nearly dependent (their normalised
+    determinant is small), every force is positive and large, and no contact was lost on the
+    way (a force that passes through infinity changes sign without passing through zero)."""
+    sim, start = _square(scale, dx)
+    end = sim.move_hand(start, fingers=SQUARE_FOLD["fingers"])
+    valid(end, "fold")
+    assert end.jammed and "lost_contact" not in {e.kind for e in end.events}
+    W = sim.scene.object_weight
+    forces = np.array([c.force for c in end.contacts]) / W
+    assert len(forces) == 3 and forces.min() > 0 and forces.max() > 1e4
+    size = float(np.linalg.norm(sim.scene.object.vertices_B, axis=1).max())
+    rows = []
+    for c in end.contacts:
+        r = (c.point - end.object_pose[:2]) / size
+        rows.append([c.normal[0], c.normal[1], r[0] * c.normal[1] - r[1] * c.normal[0]])
+    rows = np.array(rows) / np.linalg.norm(rows, axis=1)[:, None]
+    assert abs(np.linalg.det(rows)) < 1e-3
+    ref_sim, ref_start = _square()
+    ref = ref_sim.move_hand(ref_start, fingers=SQUARE_FOLD["fingers"])
+    np.testing.assert_allclose(
+        (end.object_pose - [dx * scale, 0.0, 0.0]) / [scale, scale, 1.0], ref.object_pose, atol=1e-6
+    )
