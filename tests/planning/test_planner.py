@@ -386,6 +386,11 @@ def test_pivot_arm_is_the_power_of_the_push_in_the_held_motion():
     assert arms == sorted(arms, reverse=True)
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="every placement wedges it (a fold, a jam) or lets it rest; its earlier lift came "
+    "from a fold misread as a lost contact (docs/reproduction.md)",
+)
 def test_pivot_ranked_placement_lifts_a_small_triangle():
     scene = _scene_with_object(SMALL_TRIANGLE)
     plan = planning.plan_grasp(scene, explore_moves=0)
