@@ -225,7 +225,7 @@ def short_of_band(model, q, h, E, kind: int, key: np.ndarray) -> bool:
     its band ``[-tol, tol]``. A lost contact's check is minus the least force, whichever
     contact bears it: all of ``E``'s forces are then clearly positive."""
     if kind == LOST_CONTACT:
-        kinds, values, keys = checks(model, q, h, E)
+        kinds, values, _ = checks(model, q, h, E)
         for i in range(kinds.shape[0]):
             if kinds[i] == LOST_CONTACT:
                 return values[i] < -model.tol
