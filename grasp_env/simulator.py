@@ -40,6 +40,7 @@ from grasp_env.core.state import (
     contacts_from_arrays,
     keep_contact_arrays,
     new_state,
+    require_state,
 )
 from grasp_env.errors import ComputationError, SimulationError, WorkLimitError
 from grasp_env.mechanics import closure as mech
@@ -347,8 +348,7 @@ def _events(log: list) -> list[Event]:
 def own_state(state: State, scene: Scene) -> None:
     """Refuse anything but a state of ``scene`` (the very object: scenes compare by identity),
     naming both scenes."""
-    if not isinstance(state, State):
-        raise TypeError(f"state must be a grasp_env.State, got {type(state).__name__}")
+    require_state(state)
     if state.scene is not scene:
         raise ValueError(
             f"state is of scene {state.scene.name!r}, not of {scene.name!r}, the scene it is "

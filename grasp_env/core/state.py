@@ -200,6 +200,14 @@ class State:
         return pts.copy(), nrm.copy(), bodies.copy()
 
 
+def require_state(state: object) -> None:
+    """Refuse anything but a :class:`State` (a state built by hand checks its own fields)."""
+    if not isinstance(state, State):
+        raise TypeError(
+            f"state must be a grasp_env.State, got {type(state).__name__} {short(state)}"
+        )
+
+
 def new_state(
     scene: Scene,
     object_pose: np.ndarray,

@@ -13,15 +13,13 @@ Object velocities are twists ``(vx, vy, omega)`` of the centre of mass; hand vel
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
-from grasp_env.arguments import short
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import Scene
-from grasp_env.core.state import State
+from grasp_env.core.state import State, require_state
 from grasp_env.errors import SolverError
 from grasp_env.sim.pose import constraint_matrix
 from grasp_env.solvers import dense, lp, simplex, velocity_lp
@@ -121,14 +119,8 @@ def finger_gravity_moments(scene: Scene, h: np.ndarray) -> np.ndarray:
     return out
 
 
-def _is_state(state: Any) -> None:
-    """Refuse anything but a :class:`State` (a state built by hand checks its own fields)."""
-    if not isinstance(state, State):
-        raise TypeError(f"state must be a grasp_env.State, got {short(state)}")
-
-
 def _state_arrays(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    _is_state(state)
+    require_state(state)
     p, n, b = state.contact_arrays()
     return p, n, b, V_ob(p, n, state.object_pose[:2])
 
@@ -169,7 +161,7 @@ def is_form_closure(state: State) -> bool:
     ``[n_i, r_i x n_i / rho]`` (the rows positively span R^3); :func:`escape_direction`
     (HiGHS) gives the same answer and, when there is one, the twist that escapes.
     """
-    _is_state(state)
+    require_state(state)
     points, normals, _ = state.contact_arrays()
     com = np.asarray(state.object_pose, dtype=float)  # V_ob reads its x and y
     V = constraint_matrix(points, normals, com)
