@@ -84,21 +84,22 @@ BOOTSTRAP_SAMPLES = 2000
 @dataclass(frozen=True)
 class PolicySpec:
     """A policy to evaluate: ``kind`` is "scripted", "random", "ppo" (with ``model_dir``) or
-    "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``); ``residual``:
-    the ``agents.residual.PlannerResidual`` arguments of a model that corrects the planner."""
+    "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``); ``wrapper``:
+    the wrapper class and arguments of a model that plays beside the planner
+    (``agents.residual.planner_wrapper``)."""
 
     name: str
     kind: str
     env_kwargs: dict = field(default_factory=dict)
     model_dir: str | None = None
-    residual: dict | None = None
+    wrapper: tuple[type[gym.Wrapper], dict] | None = None
 
 
 def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
     """The spec of a trained model directory: its training env set-up (palm control, start,
     a correction to the planner) from its saved config, with the env's default reward weights
     like every other policy."""
-    from agents.residual import residual_kwargs
+    from agents.residual import planner_wrapper
 
     _, _, name, entry = load_agent(model_dir)
     kwargs = {
@@ -106,7 +107,7 @@ def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
         for k, v in entry.get("env_kwargs", {}).items()
         if k not in SUITE_KEYS and not k.startswith("reward_")  # one return for all policies
     }
-    return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir), residual_kwargs(entry))
+    return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir), planner_wrapper(entry))
 
 
 def rllib_spec(path: str | os.PathLike) -> PolicySpec:
@@ -188,11 +189,10 @@ def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extr
     if max_steps is not None:
         kwargs["max_episode_steps"] = max_steps
     env = gym.make("FrictionlessGrasp-v0", **kwargs)
-    if spec.residual is None:
+    if spec.wrapper is None:
         return env
-    from agents.residual import PlannerResidual
-
-    return PlannerResidual(env, **spec.residual)
+    cls, wrapper_kwargs = spec.wrapper
+    return cls(env, **wrapper_kwargs)
 
 
 def run_episode(

@@ -39,7 +39,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env  # noqa: F401  (registers the env ids)
-from agents.residual import PlannerResidual, residual_kwargs
+from agents.residual import planner_wrapper
 from agents.train_ppo import load_checkpoint, read_model_dir
 from grasp_env.cli import HelpFormatter, positive_int
 
@@ -93,9 +93,10 @@ def play(job: tuple) -> tuple[int, int, list[float]]:
     _, entry, _, _ = read_model_dir(run)
     kwargs = {k: v for k, v in entry["env_kwargs"].items() if not k.startswith("reward_")}
     env = gym.make(entry["env_id"], **kwargs)
-    residual = residual_kwargs(entry)
-    if residual is not None:
-        env = PlannerResidual(env, **residual)
+    wrapper = planner_wrapper(entry)
+    if wrapper is not None:
+        cls, wrapper_kwargs = wrapper
+        env = cls(env, **wrapper_kwargs)
     won, grips = 0, []
     for k in range(shapes):
         obs, _ = env.reset(seed=VALIDATION_SEED + k)

@@ -26,6 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.scripted import ScriptedPolicy
+from grasp_env.arguments import real_vector
 from grasp_env.errors import ComputationError
 
 #: Resets at most per episode with ``redraw`` before a stuck shape is kept.
@@ -36,8 +37,9 @@ class PlannerResidual(gym.Wrapper):
     """The env seen through a correction to the scripted planner's action.
 
     Observation: the env's, then the planner's next action (5 floats in [-1, 1]). Action:
-    the correction, in [-1, 1] per entry, scaled by ``scale`` and added to the planner's
-    action; the sum is clipped to the env's action bounds.
+    the correction, in [-1, 1] per entry (clipped there, as the env clips its actions), scaled
+    by ``scale`` and added to the planner's action; the sum is clipped to the env's action
+    bounds.
 
     Args:
         env: a ``FrictionlessGrasp-v0`` env with ``palm_control`` (five actions).
@@ -119,11 +121,8 @@ class PlannerResidual(gym.Wrapper):
         return self.policy.plan.success
 
     def step(self, action):
-        correction = np.asarray(action, dtype=np.float32)
-        if correction.shape != (5,) or not np.isfinite(correction).all():
-            raise ValueError(
-                f"action (the correction) must be 5 finite numbers, got {np.asarray(action)!r}"
-            )
+        correction = real_vector(action, "action (the correction)", 5)
+        correction = np.clip(correction, -1.0, 1.0).astype(np.float32)  # as the env clips
         if self.policy.on_fallback or (self.after_plan and not self._plan_played()):
             correction = np.zeros(5, np.float32)
         low, high = self.env.action_space.low, self.env.action_space.high
@@ -151,13 +150,16 @@ class PlannerResidual(gym.Wrapper):
         return np.concatenate([obs, self._base]).astype(np.float32)
 
 
-def residual_kwargs(entry: dict) -> dict | None:
-    """The :class:`PlannerResidual` arguments a training entry (``configs/*.yml``) names in
-    its ``env_wrapper``, for playing its policy (``redraw`` off: every shape is played as
-    drawn, the planner with its fallbacks); None for an entry without one."""
+def planner_wrapper(entry: dict) -> tuple[type[gym.Wrapper], dict] | None:
+    """The wrapper that plays a training entry's (``configs/*.yml``) policy beside the
+    planner, :class:`PlannerResidual` or :class:`agents.handover.PlannerHandover` as its
+    ``env_wrapper`` names, with the arguments for playing it (``redraw`` off: every shape is
+    played as drawn, the planner with its fallbacks where it has them); None for an entry
+    without one."""
+    from agents.handover import PlannerHandover
     from agents.train_ppo import wrapper_specs
 
     for cls, kwargs in wrapper_specs(entry):
-        if cls is PlannerResidual:
-            return {**kwargs, "redraw": False}
+        if cls in (PlannerResidual, PlannerHandover):
+            return cls, {**kwargs, "redraw": False}
     return None

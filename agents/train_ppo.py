@@ -86,6 +86,9 @@ SHIPPED = {
 #: The shipped model directory of each env id's residual agents (an entry whose
 #: ``env_wrapper`` names ``agents.residual.PlannerResidual``, ``configs/ppo_residual.yml``).
 SHIPPED_RESIDUAL = {LIFT_ENV_ID: "lift_residual"}
+#: The shipped model directory of each env id's hand-over agents (``env_wrapper`` naming
+#: ``agents.handover.PlannerHandover``, ``configs/ppo_handover.yml``): none so far.
+SHIPPED_HANDOVER: dict[str, str] = {}
 #: Config names of the former scheme (top-level keys were config names), still accepted.
 LEGACY_NAMES = {name: env_id for env_id, name in SHIPPED.items()}
 
@@ -597,12 +600,18 @@ def prepare(
 
 def shipped_name(env_id: str, entry: dict[str, Any]) -> str:
     """The shipped model directory's name (``agents/models/<name>``) of a training entry:
-    by env id, residual agents apart (ValueError where none is shipped)."""
-    from agents.residual import residual_kwargs
+    by env id, agents that play beside the planner apart (ValueError where none is
+    shipped)."""
+    from agents.handover import PlannerHandover
+    from agents.residual import planner_wrapper
 
-    names = SHIPPED_RESIDUAL if residual_kwargs(entry) is not None else SHIPPED
+    wrapper = planner_wrapper(entry)
+    cls = None if wrapper is None else wrapper[0]
+    names, kind = SHIPPED, "model"
+    if cls is not None:
+        names = SHIPPED_HANDOVER if cls is PlannerHandover else SHIPPED_RESIDUAL
+        kind = "hand-over model" if cls is PlannerHandover else "residual model"
     if env_id not in names:
-        kind = "residual model" if names is SHIPPED_RESIDUAL else "model"
         raise ValueError(f"--update-shipped: no shipped {kind} for {env_id!r}")
     return names[env_id]
 
@@ -626,6 +635,7 @@ def train(
     print_freq: int = 5_000,
     num_threads: int = 1,
     verbose: int = 0,
+    trained_agent: str | os.PathLike | None = None,
 ) -> Path:
     """Train PPO on the config entry of ``env_id`` with the zoo; returns the run folder.
 
@@ -633,7 +643,9 @@ def train(
     numbers them), with ``train_stats.json`` added. ``out`` also writes a model directory
     there. ``hyperparams`` override the entry's keys (the zoo's ``--hyperparams``);
     ``eval_freq`` and ``save_freq`` count env steps over all envs (<= 0: off); ``max_minutes``
-    stops training early (the model is saved as it is then).
+    stops training early (the model is saved as it is then). ``trained_agent`` (a model
+    directory, :func:`load_agent`'s kind) starts from that model and its VecNormalize
+    statistics instead of a new policy (the zoo's ``--trained-agent``).
     """
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
@@ -679,6 +691,7 @@ def train(
         device=device,
         config=str(conf_file),
         show_progress=progress,
+        trained_agent=_zoo_layout(trained_agent, env_id) if trained_agent else "",
     )
     run = Path(manager.save_path)
     manager.tensorboard_log = str(run / "tb")
@@ -737,6 +750,24 @@ def train(
         used = {key: value for key, value in saved.items() if key != "env_id"}
         export_model(run, out, {env_id: {**used, "n_timesteps": int(model.num_timesteps)}})
     return run
+
+
+def _zoo_layout(model_dir: str | os.PathLike, env_id: str) -> str:
+    """A model directory copied to where the zoo looks for a trained agent (``model.zip``,
+    and its VecNormalize statistics in ``<env id>/vecnormalize.pkl`` beside it), in a new
+    temporary folder; the path of its ``model.zip``."""
+    import tempfile
+
+    model_dir = Path(model_dir)
+    model, norm = model_dir / "model.zip", model_dir / "vecnormalize.pkl"
+    if not model.is_file():
+        raise ValueError(f"--trained-agent {str(model_dir)!r}: no model.zip there")
+    staged = Path(tempfile.mkdtemp(prefix="trained_agent_"))
+    shutil.copy(model, staged / "model.zip")
+    if norm.is_file():
+        (staged / env_id).mkdir()
+        shutil.copy(norm, staged / env_id / "vecnormalize.pkl")
+    return str(staged / "model.zip")
 
 
 def export_model(run: str | os.PathLike, out: str | os.PathLike, config: dict) -> Path:
@@ -948,6 +979,12 @@ def parser() -> argparse.ArgumentParser:
         action="store_true",
         help="also write the model directory to agents/models/<name>, replacing the shipped one",
     )
+    p.add_argument(
+        "-i",
+        "--trained-agent",
+        metavar="DIR",
+        help="start from this model directory (its model.zip and VecNormalize statistics)",
+    )
     p.add_argument("-P", "--progress", action="store_true", help="show a progress bar")
     p.add_argument(
         "--print-freq",
@@ -1003,6 +1040,8 @@ def main(argv: list[str] | None = None) -> None:
             out = MODEL_DIR / shipped_name(env_id, entry)
         elif out is not None and (Path(out) / "model.zip").exists():
             raise ValueError(f"--out {out!r} already holds a model; choose a new directory")
+        if args.trained_agent and not (Path(args.trained_agent) / "model.zip").is_file():
+            raise ValueError(f"--trained-agent {args.trained_agent!r}: no model.zip there")
     except ValueError as exc:
         p.error(str(exc))
     run = train(
@@ -1023,6 +1062,7 @@ def main(argv: list[str] | None = None) -> None:
         print_freq=args.print_freq,
         num_threads=args.num_threads,
         verbose=args.verbose,
+        trained_agent=args.trained_agent,
     )
     stats = json.loads((run / "train_stats.json").read_text())
     print(

@@ -24,6 +24,7 @@ pytest.importorskip("stable_baselines3")
 import grasp_env
 from agents import evaluate as ev
 from agents import train_ppo as tp
+from agents.residual import PlannerResidual
 from grasp_env.envs import ENV_ID, ENV_KWARGS, LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
 
 REPO = Path(__file__).resolve().parents[2]
@@ -97,7 +98,7 @@ def test_shipped_models_keep_their_set_up():
     assert entry["env_id"] == LIFT_ENV_ID and norm is not None
     assert model.observation_space.shape == (env.observation_space.shape[0] + 5,)
     spec = ev.ppo_spec(tp.MODEL_DIR / "lift_residual")
-    assert spec.residual == {"scale": 0.25, "redraw": False}
+    assert spec.wrapper == (PlannerResidual, {"scale": 0.25, "redraw": False})
     assert spec.env_kwargs == {"palm_control": True, "hand_features": True}
 
 
