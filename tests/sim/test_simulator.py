@@ -779,9 +779,10 @@ def _turned_wedge() -> tuple[Simulator, State, np.ndarray]:
 
 @pytest.mark.xfail(
     strict=True,
-    reason="one long move steps over the fold of the wedge's contact equations (its pose "
-    "jumps to another branch, with forces of 5.5e6 weights) where the 50 short ones stop, "
-    "jammed at 9.8e5 weights (docs/reliability.md)",
+    reason="the fingertips pinch the object exactly one width apart (to 6e-13): the pinch "
+    "sits on the fold of its two orientations throughout the turn, and whether its forces "
+    "(about 1e6 weights, one over a vanishing determinant) change sign is rounding; one long "
+    "move follows the palm, the 50 short ones jam (docs/reliability.md)",
 )
 def test_a_wedge_turned_in_one_move_or_fifty_ends_alike() -> None:
     sim, start, target = _turned_wedge()
