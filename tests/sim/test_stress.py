@@ -125,7 +125,8 @@ def run_path(scene: grasp_env.Scene, path: list) -> None:
         h1[3:] = np.clip(target[3:], lim[:, 0], lim[:, 1])
         dh = h1 - h0
         if np.any(dh):
-            s = float((new.hand - h0) @ dh / (dh @ dh))
+            size = np.abs(dh).max()  # in units of the move: dh @ dh underflows for 1e-200
+            s = float(((new.hand - h0) / size) @ (dh / size) / ((dh / size) @ (dh / size)))
             assert -1e-12 <= s <= 1 + 1e-12, f"{where}: hand left its move (s = {s})"
             np.testing.assert_allclose(new.hand, h0 + s * dh, atol=1e-9, err_msg=where)
             if not (new.jammed or new.hand_blocked):
