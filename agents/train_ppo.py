@@ -35,6 +35,7 @@ import os
 import platform
 import shutil
 import sys
+import tempfile
 import time
 from collections import deque
 from pathlib import Path
@@ -674,28 +675,30 @@ def train(
         max_minutes=max_minutes,
         num_threads=num_threads,
     )
-    manager = _manager_class()(
-        args,
-        "ppo",
-        env_id,
-        str(log_folder),
-        n_timesteps=total,
-        eval_freq=eval_freq,
-        n_eval_episodes=n_eval_episodes,
-        save_freq=save_freq,
-        hyperparams=overrides or None,
-        seed=seed,
-        log_interval=-1,  # SB3's default
-        verbose=verbose,
-        vec_env_type=vec_env,
-        device=device,
-        config=str(conf_file),
-        show_progress=progress,
-        trained_agent=_zoo_layout(trained_agent, env_id) if trained_agent else "",
-    )
-    run = Path(manager.save_path)
-    manager.tensorboard_log = str(run / "tb")
-    model, saved = manager.setup_experiment()
+    # the zoo reads a trained agent (weights and VecNormalize statistics) while it sets up
+    with tempfile.TemporaryDirectory(prefix="trained_agent_") as staging:
+        manager = _manager_class()(
+            args,
+            "ppo",
+            env_id,
+            str(log_folder),
+            n_timesteps=total,
+            eval_freq=eval_freq,
+            n_eval_episodes=n_eval_episodes,
+            save_freq=save_freq,
+            hyperparams=overrides or None,
+            seed=seed,
+            log_interval=-1,  # SB3's default
+            verbose=verbose,
+            vec_env_type=vec_env,
+            device=device,
+            config=str(conf_file),
+            show_progress=progress,
+            trained_agent=_zoo_layout(trained_agent, env_id, staging) if trained_agent else "",
+        )
+        run = Path(manager.save_path)
+        manager.tensorboard_log = str(run / "tb")
+        model, saved = manager.setup_experiment()
     eval_seconds = [0.0]
     for callback in manager.callbacks:
         if isinstance(callback, EvalCallback):
@@ -752,22 +755,26 @@ def train(
     return run
 
 
-def _zoo_layout(model_dir: str | os.PathLike, env_id: str) -> str:
-    """A model directory copied to where the zoo looks for a trained agent (``model.zip``,
-    and its VecNormalize statistics in ``<env id>/vecnormalize.pkl`` beside it), in a new
-    temporary folder; the path of its ``model.zip``."""
-    import tempfile
-
-    model_dir = Path(model_dir)
-    model, norm = model_dir / "model.zip", model_dir / "vecnormalize.pkl"
-    if not model.is_file():
-        raise ValueError(f"--trained-agent {str(model_dir)!r}: no model.zip there")
-    staged = Path(tempfile.mkdtemp(prefix="trained_agent_"))
-    shutil.copy(model, staged / "model.zip")
+def _zoo_layout(model_dir: str | os.PathLike, env_id: str, folder: str) -> str:
+    """A model directory copied into ``folder`` where the zoo looks for a trained agent
+    (``model.zip``, and its VecNormalize statistics in ``<env id>/vecnormalize.pkl`` beside
+    it); the path of its ``model.zip``."""
+    model_dir = trained_agent_dir(model_dir)
+    staged = Path(folder)
+    shutil.copy(model_dir / "model.zip", staged / "model.zip")
+    norm = model_dir / "vecnormalize.pkl"
     if norm.is_file():
         (staged / env_id).mkdir()
         shutil.copy(norm, staged / env_id / "vecnormalize.pkl")
     return str(staged / "model.zip")
+
+
+def trained_agent_dir(model_dir: str | os.PathLike) -> Path:
+    """``model_dir`` as a path, checked to hold a model (``ValueError`` naming it)."""
+    model_dir = Path(model_dir)
+    if not (model_dir / "model.zip").is_file():
+        raise ValueError(f"--trained-agent {str(model_dir)!r}: no model.zip there")
+    return model_dir
 
 
 def export_model(run: str | os.PathLike, out: str | os.PathLike, config: dict) -> Path:
@@ -1040,8 +1047,8 @@ def main(argv: list[str] | None = None) -> None:
             out = MODEL_DIR / shipped_name(env_id, entry)
         elif out is not None and (Path(out) / "model.zip").exists():
             raise ValueError(f"--out {out!r} already holds a model; choose a new directory")
-        if args.trained_agent and not (Path(args.trained_agent) / "model.zip").is_file():
-            raise ValueError(f"--trained-agent {args.trained_agent!r}: no model.zip there")
+        if args.trained_agent:
+            trained_agent_dir(args.trained_agent)
     except ValueError as exc:
         p.error(str(exc))
     run = train(

@@ -283,6 +283,33 @@ def _shipped() -> dict[str, bytes]:
     return {str(p): p.read_bytes() for p in sorted(tp.MODEL_DIR.glob("*/*"))}
 
 
+def test_training_from_a_trained_agent_starts_from_its_weights_and_statistics(trained, tmp_path):
+    """``trained_agent``: with a learning rate of 0 the weights stay the loaded model's, bit
+    for bit, and the observation statistics go on from its (a new policy or new statistics
+    would show)."""
+    import torch
+
+    start, start_norm, _, _ = tp.load_agent(trained)
+    tp.train(
+        ENV_ID,
+        conf_file=CONFIG,
+        hyperparams={**TINY, "learning_rate": 0.0},
+        n_timesteps=128,
+        log_folder=tmp_path / "runs",
+        out=tmp_path / "again",
+        eval_freq=0,
+        save_freq=0,
+        print_freq=0,
+        trained_agent=trained,
+    )
+    model, norm, _, _ = tp.load_agent(tmp_path / "again")
+    weights = model.policy.state_dict()
+    assert weights.keys() == start.policy.state_dict().keys()
+    for name, value in start.policy.state_dict().items():
+        torch.testing.assert_close(weights[name], value, rtol=0.0, atol=0.0, msg=name)
+    assert norm.obs_rms.count >= start_norm.obs_rms.count + 128
+
+
 def test_training_writes_to_runs_and_leaves_the_shipped_models(tmp_path, monkeypatch, capsys):
     pytest.importorskip("rl_zoo3")
     shipped = _shipped()
