@@ -48,7 +48,7 @@ from grasp_env.mechanics import contacts as ct
 from grasp_env.mechanics.width import object_width
 from grasp_env.sim import events as ev
 from grasp_env.sim import move
-from grasp_env.sim.equilibrium import MAX_FORCE
+from grasp_env.sim.equilibrium import MAX_FOLD_FORCE, MAX_FORCE
 from grasp_env.sim.model import Model, pack
 
 #: Accepted ``contact_tol`` (relative to the palm width), ``[lo, hi)``: below ``lo`` the
@@ -364,4 +364,11 @@ def _finite_floats(value, size: int, name: str) -> tuple | list:
     return real_vector(value, name, size).tolist()
 
 
-__all__ = ["CONTACT_TOL_RANGE", "MAX_FORCE", "SimulationError", "Simulator", "WorkLimitError"]
+__all__ = [
+    "CONTACT_TOL_RANGE",
+    "MAX_FOLD_FORCE",
+    "MAX_FORCE",
+    "SimulationError",
+    "Simulator",
+    "WorkLimitError",
+]

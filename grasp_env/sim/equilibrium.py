@@ -21,6 +21,12 @@ from grasp_env.solvers.velocity_lp import OPTIMAL
 
 #: Largest contact force, in object weights, that counts as holding the object.
 MAX_FORCE = 1e6
+#: Largest contact force, in object weights, of an object wedged at a fold that counts as
+#: holding it where a fall would start, its forces balancing it to their own rounding
+#: (:data:`ROUNDING`): the forces of a wedge grow as one over the offset of its contacts'
+#: lines of action, and beyond this their rounding alone (16 machine epsilons of 1e7, 4e-8
+#: weights) nears the equilibrium tolerance of an independent check (1e-7 weights).
+MAX_FOLD_FORCE = 1e7
 #: Residual of an equilibrium that is rounding, relative to the size of the forces' terms
 #: (``|V^T| lam``): at a fold the forces that hold the object grow without bound, and their
 #: rounding alone leaves a residual above any fixed tolerance.

@@ -18,7 +18,7 @@ from numba import njit
 from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import consistency, contact_sets, detection
-from grasp_env.sim.equilibrium import MAX_FORCE, held
+from grasp_env.sim.equilibrium import MAX_FOLD_FORCE, MAX_FORCE, ROUNDING, held
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
 from grasp_env.sim.pose import constraint_matrix
@@ -189,7 +189,12 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
         keys = touching(model, world, contact_sets.empty())
         # Held only to rounding: near the boundary of equilibrium a residual within the usual
         # tolerance still leaves a way down, which the descent below finds.
-        if held(model, world, q[:2], keys, 1e-12 * model.weight, MAX_FORCE, 0.0):
+        # Wedged at a fold, held by forces beyond MAX_FORCE that balance it to their own
+        # rounding: every descent from there is that rounding.
+        ftol = 1e-12 * model.weight
+        if held(model, world, q[:2], keys, ftol, MAX_FORCE, 0.0) or held(
+            model, world, q[:2], keys, ftol, MAX_FOLD_FORCE, ROUNDING
+        ):
             events.append((FALL_END, s, keys))
             return q, moved
         q_rest, found = cradle(model, q, h, keys, solves)
@@ -261,9 +266,15 @@ def nudge(model, q, s, E, v, h0, dh, s_end, solves):
 @njit(cache=CACHE)
 def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
     """Nudge the hand past the boundary of equilibrium (:func:`nudge`) and let the object
-    fall to rest there: ``(s, q, found)``."""
+    fall to rest there: ``(s, q, found)``; not found where nothing falls there either (an
+    object wedged at a fold, held by forces beyond ``MAX_FORCE``)."""
     s_new, q_new, found = nudge(model, q, s, E, v, h0, dh, s_end, solves)
     if not found:
         return s, q, False
-    q_rest, _ = fall(model, q_new, h0 + s_new * dh, s_new, events, solves)
+    q_rest, moved = fall(model, q_new, h0 + s_new * dh, s_new, events, solves)
+    if not moved:
+        # wedged at a fold just ahead (held by forces beyond MAX_FORCE): no way past it
+        events.pop()
+        events.pop()
+        return s, q, False
     return s_new, q_rest, True

@@ -275,19 +275,14 @@ def square_episode(k: float) -> tuple[np.ndarray, float]:
     return np.array(rows), most
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="a wedge held by forces above MAX_FORCE starts a fall that runs on the rounding "
-    "of those forces, and how long it runs is luck: a WorkLimitError at this scale "
-    "(docs/reliability.md)",
-)
 @pytest.mark.parametrize("k", [500.0, 2000.0])
 def test_a_wedge_beyond_the_holding_bound_is_the_same_at_every_scale(k: float) -> None:
-    """Found by the scale audit: these actions wedge the square on a corner between the
+    """Regression (scale audit): these actions wedge the square on a corner between the
     fingertips, held by forces of about 3e6 weights, above ``MAX_FORCE`` (1e6), the bound of
-    the holding tests. A fall starts there and runs on the rounding of those forces: 1,889
-    pose solves at 1 palm width, a ``WorkLimitError`` at 500, 1000 and 2000. The episode
-    should be the same, scaled, at every scale, every state valid."""
+    the holding tests. A fall started there and ran on the rounding of those forces: 1,889
+    pose solves at 1 palm width, a ``WorkLimitError`` at 500, 1000 and 2000. Such a wedge is
+    held since (forces up to ``MAX_FOLD_FORCE`` that balance it to their own rounding), and
+    the episode is the same, scaled, at every scale, every state valid."""
     from grasp_env.simulator import MAX_FORCE
 
     ref, most = square_episode(1.0)
