@@ -19,12 +19,10 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
+from agents.residual import MAX_REDRAWS
 from agents.scripted import ScriptedPolicy
 from grasp_env.arguments import real_vector
 from grasp_env.errors import ComputationError
-
-#: Resets at most per episode with ``redraw`` before a shape the planner lifts is kept.
-MAX_REDRAWS = 20
 
 
 class PlannerHandover(gym.Wrapper):

@@ -29,7 +29,8 @@ from agents.scripted import ScriptedPolicy
 from grasp_env.arguments import real_vector
 from grasp_env.errors import ComputationError
 
-#: Resets at most per episode with ``redraw`` before a stuck shape is kept.
+#: Resets at most per episode with ``redraw`` before a shape is kept (here and in
+#: :class:`agents.handover.PlannerHandover`).
 MAX_REDRAWS = 20
 
 

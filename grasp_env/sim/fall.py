@@ -188,13 +188,11 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
         world = place(model, q, h)
         keys = touching(model, world, contact_sets.empty())
         # Held only to rounding: near the boundary of equilibrium a residual within the usual
-        # tolerance still leaves a way down, which the descent below finds.
-        # Wedged at a fold, held by forces beyond MAX_FORCE that balance it to their own
-        # rounding: every descent from there is that rounding.
-        ftol = 1e-12 * model.weight
-        if held(model, world, q[:2], keys, ftol, MAX_FORCE, 0.0) or held(
-            model, world, q[:2], keys, ftol, MAX_FOLD_FORCE, ROUNDING
-        ):
+        # tolerance still leaves a way down, which the descent below finds. A wedge at a fold
+        # is held by forces beyond MAX_FORCE (up to MAX_FOLD_FORCE) that balance it to their
+        # own rounding: every descent from there would be that rounding. (Forces within
+        # MAX_FORCE balancing it to 1e-12 weights pass this test as well.)
+        if held(model, world, q[:2], keys, 1e-12 * model.weight, MAX_FOLD_FORCE, ROUNDING):
             events.append((FALL_END, s, keys))
             return q, moved
         q_rest, found = cradle(model, q, h, keys, solves)
@@ -235,16 +233,23 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
 
 
 @njit(cache=CACHE)
+def fall_if_moved(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
+    """:func:`fall`, ``(q, moved)``, logged only when the object moved: a fall that found no
+    way down leaves no events."""
+    q_fallen, moved = fall(model, q, h, s, events, solves)
+    if not moved:
+        events.pop()  # its start and end
+        events.pop()
+    return q_fallen, moved
+
+
+@njit(cache=CACHE)
 def fall_if_unheld(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
     """Fall to rest when the touching contacts cannot hold the object: ``(q, fell)``; a fall
     that found no way down leaves no events."""
     if held_here(model, q, h, model.ftol):
         return q, False
-    q_fallen, moved = fall(model, q, h, s, events, solves)
-    if not moved:
-        events.pop()
-        events.pop()
-    return q_fallen, moved
+    return fall_if_moved(model, q, h, s, events, solves)
 
 
 @njit(cache=CACHE)
@@ -271,10 +276,7 @@ def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
     s_new, q_new, found = nudge(model, q, s, E, v, h0, dh, s_end, solves)
     if not found:
         return s, q, False
-    q_rest, moved = fall(model, q_new, h0 + s_new * dh, s_new, events, solves)
+    q_rest, moved = fall_if_moved(model, q_new, h0 + s_new * dh, s_new, events, solves)
     if not moved:
-        # wedged at a fold just ahead (held by forces beyond MAX_FORCE): no way past it
-        events.pop()
-        events.pop()
-        return s, q, False
+        return s, q, False  # wedged at a fold just ahead: no way past it
     return s_new, q_rest, True

@@ -40,7 +40,7 @@ from grasp_env.sim.events import (
     NO_CHECK,
     TIP_TO_EDGE,
 )  # fmt: skip
-from grasp_env.sim.fall import fall, fall_if_unheld, nudge_and_fall, touching
+from grasp_env.sim.fall import fall_if_moved, fall_if_unheld, nudge_and_fall, touching
 from grasp_env.sim.placement import place
 from grasp_env.sim.step import locate, sweep_limit, try_step
 
@@ -120,10 +120,7 @@ def advance(model, q, h0, dh, s_end, known, use_known, events, solves):
                 return ms.q, ms.s, True, events
             continue
         if outcome == motion.FALL:
-            q_new, moved = fall(model, ms.q, h, ms.s, events, solves)
-            if not moved:
-                events.pop()  # the fall that did not happen
-                events.pop()
+            q_new, moved = fall_if_moved(model, ms.q, h, ms.s, events, solves)
             ms = MoveState(q_new, ms.s, ms.keys, ms.use_known, ms.kept, ms.here, not moved, ms.run)
             continue
         if ms.s >= s_end - 1e-15:
