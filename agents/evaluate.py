@@ -97,8 +97,8 @@ class PolicySpec:
 
 def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
     """The spec of a trained model directory: its training env set-up (palm control, start,
-    a correction to the planner) from its saved config, with the env's default reward weights
-    like every other policy."""
+    the wrapper that plays it beside the planner) from its saved config, with the env's
+    default reward weights like every other policy."""
     from agents.residual import planner_wrapper
 
     _, _, name, entry = load_agent(model_dir)

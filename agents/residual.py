@@ -9,11 +9,12 @@ success and learns what to change (a lighter grip, a squeeze that does not jam).
 Where the planner has to re-place the hand or explore with palm motion (its fallbacks, when
 lifting from the env's placement gets stuck), it replays a path found by exact simulation
 past tipping bifurcations, which any correction would break: the correction is ignored for
-the rest of that episode. ``correction_cost`` charges the reward for the size of the
+the rest of that path. ``correction_cost`` charges the reward for the size of the
 correction, so that the agent leaves the planner's action where a change does not pay (the
-usual penalty of residual learning). With ``after_plan`` the correction acts only once the planner's
-plan has been played to its end: the planner lifts and adjusts the grip, and the agent then
-holds the object (the planner's palm stays fixed; the agent's may move).
+usual penalty of residual learning). With ``after_plan`` the correction acts only once the
+planner's plan, fallback or not, has been played to its end: the planner lifts and adjusts
+the grip, and the agent then holds the object (the planner's palm stays fixed there; the
+agent's may move, e.g. to a lighter grip).
 
 With ``redraw`` (training), a shape whose lifting from the placement gets stuck is redrawn at
 reset instead, and the planner runs without fallbacks: the corrections are learned where
@@ -38,9 +39,9 @@ class PlannerResidual(gym.Wrapper):
     """The env seen through a correction to the scripted planner's action.
 
     Observation: the env's, then the planner's next action (5 floats in [-1, 1]). Action:
-    the correction, in [-1, 1] per entry (clipped there, as the env clips its actions), scaled
-    by ``scale`` and added to the planner's action; the sum is clipped to the env's action
-    bounds.
+    the correction, in [-1, 1] per entry (clipped there, as the env clips its actions; the
+    palm's three with ``palm_only``), scaled by ``scale`` and added to the planner's action;
+    the sum is clipped to the env's action bounds.
 
     Args:
         env: a ``FrictionlessGrasp-v0`` env with ``palm_control`` (five actions).
@@ -52,11 +53,16 @@ class PlannerResidual(gym.Wrapper):
             counts as stuck at reset and makes the planner hold still mid-episode (reported
             once as ``info["planner_error"]``); without ``redraw`` it is raised, as by the
             planner alone.
-        after_plan: the correction acts only once the planner's plan is done.
+        after_plan: the correction acts only once the planner's plan is done (after a
+            fallback's path too), and then as it is (the planner holds still).
         correction_cost: the reward loses ``correction_cost * sum(c**2)`` for the correction
             ``c`` that acts (in [-1, 1] per entry; zero where it is ignored), reported as
             ``info["reward_correction"]`` when positive (0, the default, leaves the env's
             reward as it is).
+        palm_only: the correction moves the palm only (three actions: ``dx``, ``dy``,
+            ``dtheta``); the fingers follow the planner. Held in form closure with the
+            fingers still, the object moves with the hand as one body (e.g. the palm turns
+            the grasp so that the object's weight bears more directly on its contacts).
 
     Raises:
         ValueError: ``scale`` outside (0, 1], ``correction_cost`` negative or not finite,
@@ -70,6 +76,7 @@ class PlannerResidual(gym.Wrapper):
         redraw: bool = False,
         after_plan: bool = False,
         correction_cost: float = 0.0,
+        palm_only: bool = False,
     ) -> None:
         super().__init__(env)
         if isinstance(scale, bool) or not (isinstance(scale, (int, float)) and 0 < scale <= 1):
@@ -86,6 +93,7 @@ class PlannerResidual(gym.Wrapper):
         self.redraw = bool(redraw)
         self.after_plan = bool(after_plan)
         self.correction_cost = float(correction_cost)
+        self.palm_only = bool(palm_only)
         self.policy = ScriptedPolicy(env, fallbacks=not redraw)
         inner = env.observation_space
         self.observation_space = gym.spaces.Box(
@@ -93,7 +101,7 @@ class PlannerResidual(gym.Wrapper):
             np.concatenate([inner.high, np.ones(5, np.float32)]),
             dtype=np.float32,
         )
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (5,), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (3 if self.palm_only else 5,), np.float32)
         self._base = np.zeros(5, np.float32)
         self._planner_error: str | None = None
 
@@ -122,9 +130,11 @@ class PlannerResidual(gym.Wrapper):
         return self.policy.plan.success
 
     def step(self, action):
-        correction = real_vector(action, "action (the correction)", 5)
-        correction = np.clip(correction, -1.0, 1.0).astype(np.float32)  # as the env clips
-        if self.policy.on_fallback or (self.after_plan and not self._plan_played()):
+        size = self.action_space.shape[0]
+        correction = np.zeros(5, np.float32)
+        given = real_vector(action, "action (the correction)", size)
+        correction[5 - size :] = np.clip(given, -1.0, 1.0)  # as the env clips
+        if (not self._plan_played()) if self.after_plan else self.policy.on_fallback:
             correction = np.zeros(5, np.float32)
         low, high = self.env.action_space.low, self.env.action_space.high
         sent = np.clip(self._base + self.scale * correction, low, high).astype(np.float32)

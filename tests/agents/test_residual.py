@@ -210,11 +210,13 @@ def test_the_residual_config_names_the_wrapper_and_evaluation_plays_it():
     assert isinstance(env, PlannerResidual) and not env.redraw and env.policy.fallbacks
 
 
-def test_after_plan_the_correction_waits_for_the_planner_to_finish():
+@pytest.mark.parametrize("seed", [LIFTS, STUCK])
+def test_after_plan_the_correction_waits_for_the_planner_to_finish(seed):
     planner = _lift_env()
-    obs, info = planner.reset(seed=LIFTS)
+    obs, info = planner.reset(seed=seed)
     policy = ScriptedPolicy(planner)
     policy.reset(obs, info)
+    assert policy.on_fallback == (seed == STUCK)  # the fallback's path is waited for too
     planned = []
     while not (policy.done and planned and not planned[-1].any()):
         planned.append(policy.act(obs))
@@ -223,7 +225,7 @@ def test_after_plan_the_correction_waits_for_the_planner_to_finish():
     assert len(planned) > 10
     sent = _Sent(_lift_env())
     env = PlannerResidual(sent, after_plan=True)
-    env.reset(seed=LIFTS)
+    env.reset(seed=seed)
     correction = np.full(5, 0.5, np.float32)
     for _ in range(len(planned) + 3):
         env.step(correction)
@@ -276,3 +278,33 @@ def test_a_failed_replan_in_training_leaves_the_correction_in_charge(monkeypatch
     monkeypatch.setattr(plain.policy, "act", act)
     with pytest.raises(WorkLimitError):
         plain.step(np.zeros(5, np.float32))
+
+
+def test_a_palm_only_correction_after_the_plan_turns_the_grasp_as_one_body():
+    sent = _Sent(_lift_env())
+    env = PlannerResidual(sent, scale=1.0, after_plan=True, palm_only=True)
+    assert env.action_space.shape == (3,)
+    obs, _ = env.reset(seed=LIFTS)
+    turn = np.array([0.0, 0.0, 1.0], np.float32)
+    while not (env.policy.done and not obs[-5:].any()):  # the planner holds still
+        obs, _, _, _, info = env.step(turn)  # ignored while the planner plays
+    assert info["is_success"]
+    base = env.unwrapped
+    state = base.state
+    start_hand, start_pose = state.hand.copy(), state.object_pose.copy()
+    for _ in range(5):
+        *_, info = env.step(turn)
+        assert info["is_success"]
+    np.testing.assert_array_equal(sent.sent[-1], [0, 0, 0, 0, 1])
+    state = base.state
+    dtheta = 5 * base.max_palm_step[2]
+    np.testing.assert_allclose(state.hand - start_hand, [0, 0, dtheta, 0, 0], atol=1e-12)
+    # the object turned with the palm about the palm's origin: rotate its start pose by hand
+    c, s = np.cos(dtheta), np.sin(dtheta)
+    rel = start_pose[:2] - start_hand[:2]
+    turned = [c * rel[0] - s * rel[1], s * rel[0] + c * rel[1]]
+    expected = np.r_[start_hand[:2] + turned, start_pose[2] + dtheta]
+    np.testing.assert_allclose(state.object_pose, expected, atol=1e-9)
+    with pytest.raises(ValueError, match="correction"):
+        env.step(np.zeros(5, np.float32))
+    env.step(turn)  # still usable
