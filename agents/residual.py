@@ -23,11 +23,14 @@ they act, without the fallbacks' seconds of search.
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import numpy as np
 
 from agents.scripted import ScriptedPolicy
 from grasp_env.arguments import real_vector
+from grasp_env.envs.observation import GRIP_MAX
 from grasp_env.errors import ComputationError
 
 #: Resets at most per episode with ``redraw`` before a shape is kept (here and in
@@ -38,7 +41,8 @@ MAX_REDRAWS = 20
 class PlannerResidual(gym.Wrapper):
     """The env seen through a correction to the scripted planner's action.
 
-    Observation: the env's, then the planner's next action (5 floats in [-1, 1]). Action:
+    Observation: the env's, then the planner's next action (5 floats in [-1, 1]), then with
+    ``last_step`` what the last step did (6 floats, below). Action:
     the correction, in [-1, 1] per entry (clipped there, as the env clips its actions; the
     palm's three with ``palm_only``), scaled by ``scale`` and added to the planner's action;
     the sum is clipped to the env's action bounds.
@@ -63,6 +67,10 @@ class PlannerResidual(gym.Wrapper):
             ``dtheta``); the fingers follow the planner. Held in form closure with the
             fingers still, the object moves with the hand as one body (e.g. the palm turns
             the grasp so that the object's weight bears more directly on its contacts).
+        last_step: the observation also holds the action the env received at the last step
+            and y*/W before it (at most ``GRIP_MAX``, which also stands for no form closure;
+            zeros and the reset's y*/W after a reset), so that with the env's own y*/W
+            the agent sees what its last move did.
 
     Raises:
         ValueError: ``scale`` outside (0, 1], ``correction_cost`` negative or not finite,
@@ -77,6 +85,7 @@ class PlannerResidual(gym.Wrapper):
         after_plan: bool = False,
         correction_cost: float = 0.0,
         palm_only: bool = False,
+        last_step: bool = False,
     ) -> None:
         super().__init__(env)
         if isinstance(scale, bool) or not (isinstance(scale, (int, float)) and 0 < scale <= 1):
@@ -94,13 +103,18 @@ class PlannerResidual(gym.Wrapper):
         self.after_plan = bool(after_plan)
         self.correction_cost = float(correction_cost)
         self.palm_only = bool(palm_only)
+        self.last_step = bool(last_step)
         self.policy = ScriptedPolicy(env, fallbacks=not redraw)
         inner = env.observation_space
+        low, high = [inner.low, -np.ones(5, np.float32)], [inner.high, np.ones(5, np.float32)]
+        if self.last_step:
+            low += [-np.ones(5, np.float32), np.zeros(1, np.float32)]
+            high += [np.ones(5, np.float32), np.full(1, GRIP_MAX, np.float32)]
         self.observation_space = gym.spaces.Box(
-            np.concatenate([inner.low, -np.ones(5, np.float32)]),
-            np.concatenate([inner.high, np.ones(5, np.float32)]),
-            dtype=np.float32,
+            np.concatenate(low), np.concatenate(high), dtype=np.float32
         )
+        self._sent = np.zeros(5, np.float32)  # the last step's action
+        self._grips = [GRIP_MAX, GRIP_MAX]  # y*/W before and after the last step
         self.action_space = gym.spaces.Box(-1.0, 1.0, (3 if self.palm_only else 5,), np.float32)
         self._base = np.zeros(5, np.float32)
         self._planner_error: str | None = None
@@ -112,6 +126,8 @@ class PlannerResidual(gym.Wrapper):
             redraws -= 1
             obs, info = self.env.reset(options=options)
         self._base = np.zeros(5, np.float32) if self._planner_error else self.policy.act(obs)
+        self._sent[:] = 0.0
+        self._grips = [self._grip(info)] * 2
         return self._observe(obs), info
 
     def _plan(self, obs, info) -> bool:
@@ -139,6 +155,7 @@ class PlannerResidual(gym.Wrapper):
         low, high = self.env.action_space.low, self.env.action_space.high
         sent = np.clip(self._base + self.scale * correction, low, high).astype(np.float32)
         obs, reward, terminated, truncated, info = self.env.step(sent)
+        self._sent, self._grips = sent, [self._grips[1], self._grip(info)]
         if self.correction_cost:
             cost = -self.correction_cost * float(np.dot(correction, correction))
             reward, info = reward + cost, {**info, "reward_correction": cost}
@@ -157,8 +174,17 @@ class PlannerResidual(gym.Wrapper):
         """The planner has played its plan to the end (or failed) and holds still."""
         return (self._planner_error is not None or self.policy.done) and not self._base.any()
 
+    def _grip(self, info: dict) -> float:
+        """y*/W as the observation holds it: at most ``GRIP_MAX``, which also stands for no
+        form closure."""
+        grip = info["grip_force"] / self.unwrapped.scene.object_weight
+        return min(grip, GRIP_MAX) if math.isfinite(grip) else GRIP_MAX
+
     def _observe(self, obs: np.ndarray) -> np.ndarray:
-        return np.concatenate([obs, self._base]).astype(np.float32)
+        parts = [obs, self._base]
+        if self.last_step:
+            parts += [self._sent, self._grips[:1]]
+        return np.concatenate(parts).astype(np.float32)
 
 
 def planner_wrapper(entry: dict) -> tuple[type[gym.Wrapper], dict] | None:

@@ -19,6 +19,7 @@ from agents.evaluate import LIFT_KWARGS, PolicySpec, make_env
 from agents.residual import PlannerResidual, planner_wrapper
 from agents.scripted import ScriptedPolicy
 from grasp_env.errors import WorkLimitError
+from grasp_env.mechanics.closure import grip_objective, is_form_closure
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Held-out lifting shapes (agents.evaluate's ``lift`` suite): lifting from the placement
@@ -308,3 +309,22 @@ def test_a_palm_only_correction_after_the_plan_turns_the_grasp_as_one_body():
     with pytest.raises(ValueError, match="correction"):
         env.step(np.zeros(5, np.float32))
     env.step(turn)  # still usable
+
+
+def test_last_step_observes_the_action_sent_and_the_grip_before_it():
+    sent = _Sent(_lift_env())
+    env = PlannerResidual(sent, scale=1.0, after_plan=True, palm_only=True, last_step=True)
+    assert env.observation_space.shape[0] == env.env.observation_space.shape[0] + 11
+    obs, _ = env.reset(seed=LIFTS)
+    scene = env.unwrapped.scene
+    assert not obs[-6:-1].any()
+    before = env.unwrapped.state
+    for t in range(60):
+        obs, *_ = env.step(np.array([0.0, 0.0, 1.0 if t % 2 else -0.5], np.float32))
+        np.testing.assert_array_equal(obs[-6:-1], sent.sent[-1])
+        # y*/W of the state before the step, computed again from that state
+        closed = len(before.contacts) >= 4 and is_form_closure(before)
+        grip = grip_objective(before) / scene.object_weight if closed else 10.0
+        assert obs[-1] == pytest.approx(min(grip, 10.0), rel=1e-6)
+        before = env.unwrapped.state
+    assert obs[-1] < 10.0  # the planner has closed on the object by then
