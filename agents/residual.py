@@ -71,9 +71,15 @@ class PlannerResidual(gym.Wrapper):
             and y*/W before it (at most ``GRIP_MAX``, which also stands for no form closure;
             zeros and the reset's y*/W after a reset), so that with the env's own y*/W
             the agent sees what its last move did.
+        grip_shaping: at a step where the correction acts, the reward gains
+            ``grip_shaping`` times the fall of y*/W over the step (as ``last_step`` observes
+            it), reported as ``info["reward_grip_shaping"]``: a difference of potentials, so
+            over the steps it acts it adds up to ``grip_shaping`` times y*/W where they start
+            less where they end, and it credits each move with the change it made.
 
     Raises:
-        ValueError: ``scale`` outside (0, 1], ``correction_cost`` negative or not finite,
+        ValueError: ``scale`` outside (0, 1], ``correction_cost`` or ``grip_shaping``
+            negative or not finite,
             or an env without palm control.
     """
 
@@ -86,22 +92,23 @@ class PlannerResidual(gym.Wrapper):
         correction_cost: float = 0.0,
         palm_only: bool = False,
         last_step: bool = False,
+        grip_shaping: float = 0.0,
     ) -> None:
         super().__init__(env)
         if isinstance(scale, bool) or not (isinstance(scale, (int, float)) and 0 < scale <= 1):
             raise ValueError(f"scale must be in (0, 1], got {scale!r}")
-        if isinstance(correction_cost, bool) or not (
-            isinstance(correction_cost, (int, float)) and 0 <= correction_cost < np.inf
-        ):
-            raise ValueError(
-                f"correction_cost must be a finite number >= 0, got {correction_cost!r}"
-            )
+        for name, value in (("correction_cost", correction_cost), ("grip_shaping", grip_shaping)):
+            if isinstance(value, bool) or not (
+                isinstance(value, (int, float)) and 0 <= value < np.inf
+            ):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
         if not env.unwrapped.palm_control:
             raise ValueError("PlannerResidual needs palm_control=True (five actions), got False")
         self.scale = float(scale)
         self.redraw = bool(redraw)
         self.after_plan = bool(after_plan)
         self.correction_cost = float(correction_cost)
+        self.grip_shaping = float(grip_shaping)
         self.palm_only = bool(palm_only)
         self.last_step = bool(last_step)
         self.policy = ScriptedPolicy(env, fallbacks=not redraw)
@@ -150,7 +157,8 @@ class PlannerResidual(gym.Wrapper):
         correction = np.zeros(5, np.float32)
         given = real_vector(action, "action (the correction)", size)
         correction[5 - size :] = np.clip(given, -1.0, 1.0)  # as the env clips
-        if (not self._plan_played()) if self.after_plan else self.policy.on_fallback:
+        acts = self._plan_played() if self.after_plan else not self.policy.on_fallback
+        if not acts:
             correction = np.zeros(5, np.float32)
         low, high = self.env.action_space.low, self.env.action_space.high
         sent = np.clip(self._base + self.scale * correction, low, high).astype(np.float32)
@@ -159,6 +167,9 @@ class PlannerResidual(gym.Wrapper):
         if self.correction_cost:
             cost = -self.correction_cost * float(np.dot(correction, correction))
             reward, info = reward + cost, {**info, "reward_correction": cost}
+        if self.grip_shaping and acts:
+            shaping = self.grip_shaping * (self._grips[0] - self._grips[1])
+            reward, info = reward + shaping, {**info, "reward_grip_shaping": shaping}
         if not (terminated or truncated) and self._planner_error is None:
             try:
                 self._base = self.policy.act(obs)

@@ -90,6 +90,9 @@ SHIPPED_RESIDUAL = {LIFT_ENV_ID: "lift_residual"}
 #: The shipped model directory of each env id's hand-over agents (``env_wrapper`` naming
 #: ``agents.handover.PlannerHandover``, ``configs/ppo_handover.yml``): none so far.
 SHIPPED_HANDOVER: dict[str, str] = {}
+#: The shipped model directory of each env id's grip agents (``PlannerResidual`` with
+#: ``after_plan``: they act once the planner's plan is played, ``configs/ppo_grip.yml``).
+SHIPPED_GRIP: dict[str, str] = {}
 #: Config names of the former scheme (top-level keys were config names), still accepted.
 LEGACY_NAMES = {name: env_id for env_id, name in SHIPPED.items()}
 
@@ -607,11 +610,13 @@ def shipped_name(env_id: str, entry: dict[str, Any]) -> str:
     from agents.residual import planner_wrapper
 
     wrapper = planner_wrapper(entry)
-    cls = None if wrapper is None else wrapper[0]
     names, kind = SHIPPED, "model"
-    if cls is not None:
-        names = SHIPPED_HANDOVER if cls is PlannerHandover else SHIPPED_RESIDUAL
-        kind = "hand-over model" if cls is PlannerHandover else "residual model"
+    if wrapper is not None and wrapper[0] is PlannerHandover:
+        names, kind = SHIPPED_HANDOVER, "hand-over model"
+    elif wrapper is not None and wrapper[1].get("after_plan"):
+        names, kind = SHIPPED_GRIP, "grip model"
+    elif wrapper is not None:
+        names, kind = SHIPPED_RESIDUAL, "residual model"
     if env_id not in names:
         raise ValueError(f"--update-shipped: no shipped {kind} for {env_id!r}")
     return names[env_id]

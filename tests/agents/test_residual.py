@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
@@ -328,3 +329,55 @@ def test_last_step_observes_the_action_sent_and_the_grip_before_it():
         assert obs[-1] == pytest.approx(min(grip, 10.0), rel=1e-6)
         before = env.unwrapped.state
     assert obs[-1] < 10.0  # the planner has closed on the object by then
+
+
+def test_the_grip_config_plays_after_the_plan_and_ships_apart_from_the_residual():
+    env_id, entry = train_ppo.prepare("FrictionlessGraspLift-v0", ROOT / "configs" / "ppo_grip.yml")
+    wrapper = planner_wrapper(entry)
+    assert wrapper == (
+        PlannerResidual,
+        {
+            "scale": 1.0,
+            "redraw": False,
+            "after_plan": True,
+            "palm_only": True,
+            "last_step": True,
+            "grip_shaping": 50.0,
+        },
+    )
+    assert entry["env_kwargs"]["reward_lift_weight"] == 0.0
+    if env_id in train_ppo.SHIPPED_GRIP:
+        assert train_ppo.shipped_name(env_id, entry) == train_ppo.SHIPPED_GRIP[env_id]
+    else:  # never the residual model's directory
+        with pytest.raises(ValueError, match="no shipped grip model"):
+            train_ppo.shipped_name(env_id, entry)
+    env = make_env(
+        PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, wrapper), LIFT_KWARGS, 200
+    )
+    assert env.action_space.shape == (3,) and env.policy.fallbacks
+
+
+def _grip_W(state) -> float:
+    """y*/W of a state, computed from it, as the residual's observation caps it (10)."""
+    closed = len(state.contacts) >= 4 and is_form_closure(state)
+    grip = grip_objective(state) / state.scene.object_weight if closed else math.inf
+    return min(grip, 10.0)
+
+
+def test_grip_shaping_credits_each_acting_step_with_the_fall_of_the_grip():
+    inner = _Rewards(_lift_env())
+    env = PlannerResidual(inner, scale=1.0, after_plan=True, palm_only=True, grip_shaping=50.0)
+    obs, _ = env.reset(seed=LIFTS)
+    acted, shapings = 0, []
+    for t in range(80):
+        before, played = env.unwrapped.state, env.policy.done and not obs[-5:].any()
+        obs, reward, *_, info = env.step(np.array([0.0, 0.0, -1.0 if t % 3 else 1.0], np.float32))
+        shaping = 50.0 * (_grip_W(before) - _grip_W(env.unwrapped.state)) if played else 0.0
+        acted += played
+        shapings.append(shaping)
+        assert reward == pytest.approx(inner.rewards[-1] + shaping, rel=1e-6, abs=1e-9)
+        assert info.get("reward_grip_shaping", 0.0) == pytest.approx(shaping, rel=1e-6, abs=1e-9)
+    assert acted > 20 and max(map(abs, shapings)) > 1e-3  # the turns changed the grip
+    for bad in (-1.0, math.nan, True, "1"):
+        with pytest.raises(ValueError, match="grip_shaping must be a finite number >= 0"):
+            PlannerResidual(_lift_env(), grip_shaping=bad)
