@@ -346,11 +346,8 @@ def test_the_grip_config_plays_after_the_plan_and_ships_apart_from_the_residual(
         },
     )
     assert entry["env_kwargs"]["reward_lift_weight"] == 0.0
-    if env_id in train_ppo.SHIPPED_GRIP:
-        assert train_ppo.shipped_name(env_id, entry) == train_ppo.SHIPPED_GRIP[env_id]
-    else:  # never the residual model's directory
-        with pytest.raises(ValueError, match="no shipped grip model"):
-            train_ppo.shipped_name(env_id, entry)
+    with pytest.raises(ValueError, match="no shipped grip model"):  # not lift_residual's
+        train_ppo.shipped_name(env_id, entry)
     env = make_env(
         PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, wrapper), LIFT_KWARGS, 200
     )
