@@ -312,21 +312,25 @@ def test_a_palm_only_correction_after_the_plan_turns_the_grasp_as_one_body():
     env.step(turn)  # still usable
 
 
+def _grip_W(state) -> float:
+    """y*/W of a state, computed from it, as the residual's observation caps it (10)."""
+    closed = len(state.contacts) >= 4 and is_form_closure(state)
+    grip = grip_objective(state) / state.scene.object_weight if closed else math.inf
+    return min(grip, 10.0)
+
+
 def test_last_step_observes_the_action_sent_and_the_grip_before_it():
     sent = _Sent(_lift_env())
     env = PlannerResidual(sent, scale=1.0, after_plan=True, palm_only=True, last_step=True)
     assert env.observation_space.shape[0] == env.env.observation_space.shape[0] + 11
     obs, _ = env.reset(seed=LIFTS)
-    scene = env.unwrapped.scene
     assert not obs[-6:-1].any()
     before = env.unwrapped.state
     for t in range(60):
         obs, *_ = env.step(np.array([0.0, 0.0, 1.0 if t % 2 else -0.5], np.float32))
         np.testing.assert_array_equal(obs[-6:-1], sent.sent[-1])
         # y*/W of the state before the step, computed again from that state
-        closed = len(before.contacts) >= 4 and is_form_closure(before)
-        grip = grip_objective(before) / scene.object_weight if closed else 10.0
-        assert obs[-1] == pytest.approx(min(grip, 10.0), rel=1e-6)
+        assert obs[-1] == pytest.approx(_grip_W(before), rel=1e-6)
         before = env.unwrapped.state
     assert obs[-1] < 10.0  # the planner has closed on the object by then
 
@@ -352,13 +356,6 @@ def test_the_grip_config_plays_after_the_plan_and_ships_apart_from_the_residual(
         PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, wrapper), LIFT_KWARGS, 200
     )
     assert env.action_space.shape == (3,) and env.policy.fallbacks
-
-
-def _grip_W(state) -> float:
-    """y*/W of a state, computed from it, as the residual's observation caps it (10)."""
-    closed = len(state.contacts) >= 4 and is_form_closure(state)
-    grip = grip_objective(state) / state.scene.object_weight if closed else math.inf
-    return min(grip, 10.0)
 
 
 def test_grip_shaping_credits_each_acting_step_with_the_fall_of_the_grip():
