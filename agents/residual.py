@@ -9,9 +9,10 @@ success and learns what to change (a lighter grip, a squeeze that does not jam).
 Where the planner has to re-place the hand or explore with palm motion (its fallbacks, when
 lifting from the env's placement gets stuck), it replays a path found by exact simulation
 past tipping bifurcations, which any correction would break: the correction is ignored for
-the rest of that path. ``correction_cost`` charges the reward for the size of the
-correction, so that the agent leaves the planner's action where a change does not pay (the
-usual penalty of residual learning). With ``after_plan`` the correction acts only once the
+the rest of that episode (with ``after_plan``, until the path is played).
+``correction_cost`` charges the reward for the size of the correction, so that the agent
+leaves the planner's action where a change does not pay (the usual penalty of residual
+learning). With ``after_plan`` the correction acts only once the
 planner's plan, fallback or not, has been played to its end: the planner lifts and adjusts
 the grip, and the agent then holds the object (the planner's palm stays fixed there; the
 agent's may move, e.g. to a lighter grip).
