@@ -33,6 +33,7 @@ from agents.scripted import ScriptedPolicy
 from grasp_env.arguments import real_vector
 from grasp_env.envs.observation import GRIP_MAX
 from grasp_env.errors import ComputationError
+from grasp_env.mechanics.closure import grip_objective, is_form_closure
 
 #: Resets at most per episode with ``redraw`` before a shape is kept (here and in
 #: :class:`agents.handover.PlannerHandover`).
@@ -43,7 +44,8 @@ class PlannerResidual(gym.Wrapper):
     """The env seen through a correction to the scripted planner's action.
 
     Observation: the env's, then the planner's next action (5 floats in [-1, 1]), then with
-    ``last_step`` what the last step did (6 floats, below). Action:
+    ``last_step`` what the last step did (6 floats), then with ``probe_turns`` what a turn
+    would do (2 floats; both below). Action:
     the correction, in [-1, 1] per entry (clipped there, as the env clips its actions; the
     palm's three with ``palm_only``), scaled by ``scale`` and added to the planner's action;
     the sum is clipped to the env's action bounds.
@@ -77,11 +79,18 @@ class PlannerResidual(gym.Wrapper):
             it), reported as ``info["reward_grip_shaping"]``: a difference of potentials, so
             over the steps it acts it adds up to ``grip_shaping`` times y*/W where they start
             less where they end, and it credits each move with the change it made.
+        probe_turns: the observation also holds the change of y*/W (as ``last_step`` caps
+            it) that the largest palm turn of the correction, each way (``dtheta`` correction
+            +1, then -1, the rest zero), would make at this step, simulated on a copy with
+            :meth:`~grasp_env.FrictionlessGraspEnv.simulate_action` (a move the simulator
+            cannot follow counts as losing form closure); zeros where the correction does
+            not act. Turning the palm turns a held grasp as one body, the move that lightens
+            the planner's grips most; the probes let the agent see which way is lighter, as
+            a search does by trying.
 
     Raises:
         ValueError: ``scale`` outside (0, 1], ``correction_cost`` or ``grip_shaping``
-            negative or not finite,
-            or an env without palm control.
+            negative or not finite, or an env without palm control.
     """
 
     def __init__(
@@ -94,6 +103,7 @@ class PlannerResidual(gym.Wrapper):
         palm_only: bool = False,
         last_step: bool = False,
         grip_shaping: float = 0.0,
+        probe_turns: bool = False,
     ) -> None:
         super().__init__(env)
         if isinstance(scale, bool) or not (isinstance(scale, (int, float)) and 0 < scale <= 1):
@@ -112,12 +122,16 @@ class PlannerResidual(gym.Wrapper):
         self.grip_shaping = float(grip_shaping)
         self.palm_only = bool(palm_only)
         self.last_step = bool(last_step)
+        self.probe_turns = bool(probe_turns)
         self.policy = ScriptedPolicy(env, fallbacks=not redraw)
         inner = env.observation_space
         low, high = [inner.low, -np.ones(5, np.float32)], [inner.high, np.ones(5, np.float32)]
         if self.last_step:
             low += [-np.ones(5, np.float32), np.zeros(1, np.float32)]
             high += [np.ones(5, np.float32), np.full(1, GRIP_MAX, np.float32)]
+        if self.probe_turns:
+            low.append(np.full(2, -GRIP_MAX, np.float32))
+            high.append(np.full(2, GRIP_MAX, np.float32))
         self.observation_space = gym.spaces.Box(
             np.concatenate(low), np.concatenate(high), dtype=np.float32
         )
@@ -158,11 +172,10 @@ class PlannerResidual(gym.Wrapper):
         correction = np.zeros(5, np.float32)
         given = real_vector(action, "action (the correction)", size)
         correction[5 - size :] = np.clip(given, -1.0, 1.0)  # as the env clips
-        acts = self._plan_played() if self.after_plan else not self.policy.on_fallback
+        acts = self._acts()
         if not acts:
             correction = np.zeros(5, np.float32)
-        low, high = self.env.action_space.low, self.env.action_space.high
-        sent = np.clip(self._base + self.scale * correction, low, high).astype(np.float32)
+        sent = self._send(correction)
         obs, reward, terminated, truncated, info = self.env.step(sent)
         self._sent, self._grips = sent, [self._grips[1], self._grip(info)]
         if self.correction_cost:
@@ -182,6 +195,33 @@ class PlannerResidual(gym.Wrapper):
                 info = {**info, "planner_error": self._planner_error}
         return self._observe(obs), reward, terminated, truncated, info
 
+    def _acts(self) -> bool:
+        """The correction acts at this step."""
+        return self._plan_played() if self.after_plan else not self.policy.on_fallback
+
+    def _send(self, correction: np.ndarray) -> np.ndarray:
+        """The env's action for a correction (5 floats in [-1, 1]) at this step."""
+        low, high = self.env.action_space.low, self.env.action_space.high
+        return np.clip(self._base + self.scale * correction, low, high).astype(np.float32)
+
+    def _probes(self) -> list[float]:
+        """The change of y*/W that a full turn of the correction each way would make now."""
+        if not self._acts():
+            return [0.0, 0.0]
+        env = self.unwrapped
+        now = self._grips[1]
+        changes = []
+        for sign in (1.0, -1.0):
+            try:
+                state = env.simulate_action(env.state, self._send(np.array([0, 0, 0, 0, sign])))
+            except ComputationError:
+                changes.append(GRIP_MAX - now)
+                continue
+            closed = len(state.contacts) >= 4 and is_form_closure(state)
+            grip = grip_objective(state) if closed else math.inf
+            changes.append(_capped(grip / state.scene.object_weight) - now)
+        return changes
+
     def _plan_played(self) -> bool:
         """The planner has played its plan to the end (or failed) and holds still."""
         return (self._planner_error is not None or self.policy.done) and not self._base.any()
@@ -189,14 +229,21 @@ class PlannerResidual(gym.Wrapper):
     def _grip(self, info: dict) -> float:
         """y*/W as the observation holds it: at most ``GRIP_MAX``, which also stands for no
         form closure."""
-        grip = info["grip_force"] / self.unwrapped.scene.object_weight
-        return min(grip, GRIP_MAX) if math.isfinite(grip) else GRIP_MAX
+        return _capped(info["grip_force"] / self.unwrapped.scene.object_weight)
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
         parts = [obs, self._base]
         if self.last_step:
             parts += [self._sent, self._grips[:1]]
+        if self.probe_turns:
+            parts += [self._probes()]
         return np.concatenate(parts).astype(np.float32)
+
+
+def _capped(grip: float) -> float:
+    """y*/W as the residual observes it: at most ``GRIP_MAX``, which also stands for no form
+    closure (``inf``)."""
+    return min(grip, GRIP_MAX) if math.isfinite(grip) else GRIP_MAX
 
 
 def planner_wrapper(entry: dict) -> tuple[type[gym.Wrapper], dict] | None:

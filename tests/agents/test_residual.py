@@ -375,3 +375,47 @@ def test_grip_shaping_credits_each_acting_step_with_the_fall_of_the_grip():
     for bad in (-1.0, math.nan, True, "1"):
         with pytest.raises(ValueError, match="grip_shaping must be a finite number >= 0"):
             PlannerResidual(_lift_env(), grip_shaping=bad)
+
+
+def _probing_env() -> PlannerResidual:
+    return PlannerResidual(
+        _lift_env(), scale=1.0, after_plan=True, palm_only=True, probe_turns=True
+    )
+
+
+def test_turn_probes_observe_what_a_full_turn_each_way_then_does():
+    env = _probing_env()
+    assert env.observation_space.shape[0] == env.env.observation_space.shape[0] + 7
+    obs, _ = env.reset(seed=LIFTS)
+    actions, checked = [], 0
+    while checked < 3:
+        if not (env.policy.done and not obs[-7:-2].any()):  # the planner still plays
+            assert not obs[-2:].any()
+        elif len(actions) % 4 == 0:
+            # replay the episode in a fresh env, then turn each way with a real step
+            for sign, probe in zip((1.0, -1.0), obs[-2:], strict=True):
+                replay = _probing_env()
+                replay.reset(seed=LIFTS)
+                for action in actions:
+                    replay.step(action)
+                before = _grip_W(replay.unwrapped.state)
+                replay.step(np.array([0.0, 0.0, sign], np.float32))
+                assert probe == pytest.approx(_grip_W(replay.unwrapped.state) - before, abs=1e-6)
+            checked += 1
+        actions.append(np.array([0.0, 0.0, 0.3 if len(actions) % 3 else -0.2], np.float32))
+        obs, *_ = env.step(actions[-1])
+
+
+def test_turning_where_the_probes_say_lightens_the_planners_grip():
+    env = _probing_env()
+    obs, _ = env.reset(seed=LIFTS)
+    planner = None
+    for _ in range(150):
+        turn = 0.0
+        if env.policy.done and not obs[-7:-2].any():
+            planner = planner or _grip_W(env.unwrapped.state)
+            if min(obs[-2:]) < 0:
+                turn = 1.0 if obs[-2] <= obs[-1] else -1.0
+        obs, *_, info = env.step(np.array([0.0, 0.0, turn], np.float32))
+    assert info["is_success"]
+    assert _grip_W(env.unwrapped.state) < planner - 0.02  # 1.03 W: the planner's
