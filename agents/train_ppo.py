@@ -92,7 +92,7 @@ SHIPPED_RESIDUAL = {LIFT_ENV_ID: "lift_residual"}
 SHIPPED_HANDOVER: dict[str, str] = {}
 #: The shipped model directory of each env id's grip agents (``PlannerResidual`` with
 #: ``after_plan``: they act once the planner's plan is played, ``configs/ppo_grip.yml``).
-SHIPPED_GRIP: dict[str, str] = {}
+SHIPPED_GRIP = {LIFT_ENV_ID: "lift_grip"}
 #: Config names of the former scheme (top-level keys were config names), still accepted.
 LEGACY_NAMES = {name: env_id for env_id, name in SHIPPED.items()}
 

@@ -100,6 +100,26 @@ def test_shipped_models_keep_their_set_up():
     spec = ev.ppo_spec(tp.MODEL_DIR / "lift_residual")
     assert spec.wrapper == (PlannerResidual, {"scale": 0.25, "redraw": False})
     assert spec.env_kwargs == {"palm_control": True, "hand_features": True}
+    # the grip agent: the planner's plan, then palm turns observing the turn probes
+    model, norm, _, entry = tp.load_agent(tp.MODEL_DIR / "lift_grip")
+    assert entry["env_id"] == LIFT_ENV_ID and norm is not None
+    assert model.observation_space.shape == (env.observation_space.shape[0] + 13,)
+    assert model.action_space.shape == (3,)
+    spec = ev.ppo_spec(tp.MODEL_DIR / "lift_grip")
+    assert spec.wrapper[0] is PlannerResidual and not spec.wrapper[1]["redraw"]
+    assert spec.wrapper[1]["after_plan"] and spec.wrapper[1]["probe_turns"]
+
+
+def test_the_shipped_grip_agent_lightens_the_planners_grip():
+    # the first held-out lifting shape: the planner's grasp holds the object at 3.9 W
+    seed = ev.HELDOUT_SEED
+    planner = ev.run_episode(
+        ev.PolicySpec("scripted", "scripted", ev.SCRIPTED_KWARGS), "lift", "", seed, None
+    )
+    agent = ev.run_episode(ev.ppo_spec(tp.MODEL_DIR / "lift_grip"), "lift", "", seed, None)
+    assert planner.success and agent.success and not agent.dropped
+    assert planner.steps_to_closure == agent.steps_to_closure  # the planner's lifting
+    assert agent.grip_W < planner.grip_W - 1.0
 
 
 def test_importing_train_ppo_needs_neither_sb3_nor_the_zoo():

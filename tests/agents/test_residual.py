@@ -347,11 +347,11 @@ def test_the_grip_config_plays_after_the_plan_and_ships_apart_from_the_residual(
             "palm_only": True,
             "last_step": True,
             "grip_shaping": 50.0,
+            "probe_turns": True,
         },
     )
     assert entry["env_kwargs"]["reward_lift_weight"] == 0.0
-    with pytest.raises(ValueError, match="no shipped grip model"):  # not lift_residual's
-        train_ppo.shipped_name(env_id, entry)
+    assert train_ppo.shipped_name(env_id, entry) == "lift_grip"  # not lift_residual
     env = make_env(
         PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, wrapper), LIFT_KWARGS, 200
     )
