@@ -113,8 +113,16 @@ def play(job: tuple) -> tuple[int, int, list[float]]:
     return steps, won, grips
 
 
+def run_labels(runs: list[Path]) -> list[str]:
+    """Each run's name in the outputs: its folder's name, or the path as given where names
+    repeat (parallel runs, each in a log folder of its own, all end in ``_1``)."""
+    names = [run.name for run in runs]
+    return names if len(set(names)) == len(names) else [str(run) for run in runs]
+
+
 def curves(runs: list[Path], shapes: int, every: int, workers: int) -> list[dict]:
     """One row per run and checkpoint: steps, success rate, mean y*/W (NaN without one)."""
+    labels = dict(zip(map(str, runs), run_labels(runs), strict=True))
     jobs = [
         (str(run), steps, str(path), shapes)
         for run in runs
@@ -129,7 +137,7 @@ def curves(runs: list[Path], shapes: int, every: int, workers: int) -> list[dict
     for (run, _, _, _), (steps, won, grips) in zip(jobs, results, strict=True):
         rows.append(
             {
-                "run": Path(run).name,
+                "run": labels[run],
                 "steps": steps,
                 "success_rate": won / shapes,
                 "grip_W_mean": float(np.mean(grips)) if grips else math.nan,
@@ -196,6 +204,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", default="runs/learning_curves", help="output directory")
     args = parser.parse_args(argv)
     runs = [Path(r) for r in args.runs]
+    if len({run.resolve() for run in runs}) < len(runs):
+        parser.error(f"a run folder is given twice: {args.runs}")
     for run in runs:
         if not run.is_dir() or not any(run.glob("rl_model_*_steps.zip")):
             parser.error(f"{str(run)!r} is not a run folder with checkpoints")
@@ -209,7 +219,10 @@ def main(argv: list[str] | None = None) -> None:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    training = {run.name: training_success(run, args.bin) for run in runs}
+    training = {
+        label: training_success(run, args.bin)
+        for run, label in zip(runs, run_labels(runs), strict=True)
+    }
     title = f"{env_ids.pop()}: {len(runs)} seeds, {args.shapes} validation episodes a checkpoint"
     plot(out / "learning_curves.png", rows, training, title)
     for r in rows:

@@ -10,6 +10,7 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 import csv
 import json
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -602,6 +603,16 @@ def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     with pytest.raises(SystemExit):
         lc.main([str(tmp_path), "--out", str(tmp_path / "x")])
     assert "not a run folder with checkpoints" in capsys.readouterr().err
+    # seeds run side by side in log folders of their own: same folder name, kept apart
+    twin = tmp_path / "other" / run.name
+    shutil.copytree(run, twin)
+    out = tmp_path / "two"
+    lc.main([str(run), str(twin), "--shapes", "1", "--every", "256", "--out", str(out)])
+    rows = list(csv.DictReader(open(out / "learning_curves.csv")))
+    assert [(r["run"], int(r["steps"])) for r in rows] == [(str(run), 256), (str(twin), 256)]
+    with pytest.raises(SystemExit):
+        lc.main([str(run), str(run), "--out", str(tmp_path / "y")])
+    assert "given twice" in capsys.readouterr().err
 
 
 def test_evaluation_env_gets_the_entrys_task_kwargs(tmp_path):
