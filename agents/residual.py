@@ -33,7 +33,7 @@ from agents.scripted import ScriptedPolicy
 from grasp_env.arguments import real_vector
 from grasp_env.envs.observation import GRIP_MAX
 from grasp_env.errors import ComputationError
-from grasp_env.mechanics.closure import grip_objective, is_form_closure
+from grasp_env.planning.plan import grip_if_closed
 
 #: Resets at most per episode with ``redraw`` before a shape is kept (here and in
 #: :class:`agents.handover.PlannerHandover`).
@@ -217,9 +217,7 @@ class PlannerResidual(gym.Wrapper):
             except ComputationError:
                 changes.append(GRIP_MAX - now)
                 continue
-            closed = len(state.contacts) >= 4 and is_form_closure(state)
-            grip = grip_objective(state) if closed else math.inf
-            changes.append(_capped(grip / state.scene.object_weight) - now)
+            changes.append(_capped(grip_if_closed(state) / state.scene.object_weight) - now)
         return changes
 
     def _plan_played(self) -> bool:
@@ -242,7 +240,7 @@ class PlannerResidual(gym.Wrapper):
 
 def _capped(grip: float) -> float:
     """y*/W as the residual observes it: at most ``GRIP_MAX``, which also stands for no form
-    closure (``inf``)."""
+    closure (``inf`` in the env's info, ``nan`` from ``grip_if_closed``)."""
     return min(grip, GRIP_MAX) if math.isfinite(grip) else GRIP_MAX
 
 
