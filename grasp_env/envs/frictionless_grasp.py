@@ -212,14 +212,17 @@ class FrictionlessGraspEnv(gym.Env):
       of the fingers, with no approach to learn.
 
     With ``shape_randomizer`` the object is a new random convex polygon at every reset, in
-    the base scene's hand set-up. ``reset(options=...)`` accepts ``{"scene": ..., "palm":
-    (x, y, theta), "fingers": (q1, q2)}`` (world units): that scene (no randomizer) and that
-    hand configuration (missing parts from the scene). A bad option (unknown key, a value that
-    is not real numbers as for actions, a bad scene, a hand outside the workspace or joint
-    limits, or overlapping the object or the support) or ``seed`` raises ``ValueError`` naming
-    it. A refused reset changes nothing: the episode in progress, if any, continues as if the
-    call had not happened (same state, same random generator), and the wrappers that
-    ``gymnasium.make`` adds are left as they were (:class:`~grasp_env.envs.restore.RestoreOnError`).
+    the base scene's hand set-up, its size in palm widths and its mass in ``w**2`` at every
+    palm width: a base scene scaled by ``k`` draws, for the same seed, the same shape scaled
+    by ``k``, so that the episode's observations and rewards are those of the unscaled scene.
+    ``reset(options=...)`` accepts ``{"scene": ..., "palm": (x, y, theta), "fingers": (q1,
+    q2)}`` (world units): that scene (no randomizer) and that hand configuration (missing
+    parts from the scene). A bad option (unknown key, a value that is not real numbers as for
+    actions, a bad scene, a hand outside the workspace or joint limits, or overlapping the
+    object or the support) or ``seed`` raises ``ValueError`` naming it. A refused reset
+    changes nothing: the episode in progress, if any, continues as if the call had not
+    happened (same state, same random generator), and the wrappers that ``gymnasium.make``
+    adds are left as they were (:class:`~grasp_env.envs.restore.RestoreOnError`).
 
     ## Episode End
 
@@ -252,10 +255,10 @@ class FrictionlessGraspEnv(gym.Env):
       name, whatever the working directory holds (:func:`grasp_env.load_scene`).
     * ``shape_randomizer``: None, True (default ranges) or a dict of ranges
       ``{"vertices": (3, 8), "size": (0.2, 0.45), "aspect": (1.0, 3.0), "mass": (0.05,
-      0.5)}`` (size: the polygon's diameter in palm widths, within [1e-3, 1e3]; aspect in
-      [1, 100]; see :func:`grasp_env.envs.shapes.random_convex_polygon`). Shapes whose hand
-      set-up puts the palm outside the palm workspace are drawn again, like those that
-      overlap the hand.
+      0.5)}`` (size: the polygon's diameter in palm widths, within [1e-3, 1e3]; mass in
+      ``w**2``, the mass of a ``w x w`` square of density 1; aspect in [1, 100]; see
+      :func:`grasp_env.envs.shapes.random_shape_scene`). Shapes whose hand set-up puts the
+      palm outside the palm workspace are drawn again, like those that overlap the hand.
     * ``palm_control`` (False), ``max_finger_step`` (0.05 rad), ``max_palm_step`` ((0.02,
       0.02, 0.05): palm widths, palm widths, rad).
     * ``start``: ``"scene"`` (default), ``"preliftoff"``, ``"random"`` or ``"placement"``.

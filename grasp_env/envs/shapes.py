@@ -5,6 +5,11 @@ stable supporting edge; :func:`random_shape_scene` puts it into a base scene's h
 (:func:`hand_setup`: palm centred over the object, parallel to the support, just above the
 longer finger's reach of the support, fingers hanging). Randomness comes only from the
 ``numpy.random.Generator`` passed in.
+
+The shape ranges are relative to the base scene's palm width ``w``: sizes in palm widths,
+masses in ``w**2`` (the mass of a ``w x w`` square of density 1). So a base scene scaled by
+``k`` (every length times ``k``, densities kept) draws, for the same generator state, the same
+object scaled by ``k``, with ``k**2`` times the mass.
 """
 
 from __future__ import annotations
@@ -22,8 +27,9 @@ from grasp_env.errors import SceneError
 from grasp_env.planning.preliftoff import centred_hand
 
 #: Default ranges of the shape randomizer: vertex count (inclusive), size (the polygon's
-#: diameter, i.e. its largest vertex-to-vertex distance, in palm widths), aspect ratio of the
-#: ellipse the vertices lie on, and mass.
+#: diameter, i.e. its largest vertex-to-vertex distance, in palm widths ``w``), aspect ratio
+#: of the ellipse the vertices lie on, and mass (in ``w**2``: a ``w x w`` square of density 1
+#: has mass 1).
 DEFAULT_SHAPE_RANGES: dict[str, tuple[float, float]] = {
     "vertices": (3, 8),
     "size": (0.2, 0.45),
@@ -52,7 +58,8 @@ def random_convex_polygon(
     size: tuple[float, float] = (0.2, 0.45),
     aspect: tuple[float, float] = (1.0, 3.0),
 ) -> np.ndarray:
-    """A random strictly convex polygon at rest on a stable edge on the support ``y = 0``.
+    """A random strictly convex polygon at rest on a stable edge on the support ``y = 0``, in
+    the units of ``size`` (:func:`random_shape_scene` gives it in the base scene's).
 
     The vertices are points of an ellipse with axes ``1`` and ``aspect`` at random angles
     (angular gaps drawn in a 1:3 range, so no two vertices nearly coincide), scaled to a
@@ -151,6 +158,9 @@ def random_shape_scene(
     """A random object (:func:`random_convex_polygon`, mass uniform in ``ranges["mass"]``) at
     ``base``'s object position, in the hand set-up of :func:`hand_setup`.
 
+    ``ranges`` are relative to ``base``'s palm width ``w`` (sizes in ``w``, masses in
+    ``w**2``), so the object keeps its size relative to the hand at every palm width: a base
+    scene scaled by ``k`` gives, for the same generator state, the object scaled by ``k``.
     Shapes that overlap the hand there are skipped, and so are those for which ``problem``
     (if given) names one.
 
@@ -160,11 +170,14 @@ def random_shape_scene(
     r = {**DEFAULT_SHAPE_RANGES, **(ranges or {})}
     d = scene_to_dict(base)
     x0 = float(base.object.start_pose[0])
+    w = base.palm.width
+    size = (r["size"][0] * w, r["size"][1] * w)
+    mass_range = (r["mass"][0] * w * w, r["mass"][1] * w * w)
     last = None
     for _ in range(MAX_SHAPE_TRIES):
-        v = random_convex_polygon(rng, r["vertices"], r["size"], r["aspect"])
+        v = random_convex_polygon(rng, r["vertices"], size, r["aspect"])
         v[:, 0] += x0
-        mass = float(rng.uniform(*r["mass"]))
+        mass = float(rng.uniform(*mass_range))
         h = hand_setup(base, v)
         d["name"] = f"{base.name}/random"
         d["description"] = f"random convex {len(v)}-gon in the hand set-up of {base.name}"
