@@ -112,13 +112,13 @@ def hand_placement_problem(
     obj = geo.transform(object_pose, scene.object.vertices_B)
     lowest = float(obj[:, 1].min())
     if lowest < -tol:
-        return f"the object enters the support (lowest y = {lowest:.4g})"
+        return f"the object enters the support (lowest y = {lowest!r})"
     names = ("palm", "finger 1", "finger 2")
     for name, poly in zip(names, hand_polygons_W(scene, h), strict=True):
         lowest = float(poly[:, 1].min())
         if lowest < -tol:
-            return f"the {name} enters the support (lowest y = {lowest:.4g})"
+            return f"the {name} enters the support (lowest y = {lowest!r})"
         depth = geo.penetration_depth(poly, obj)
         if depth > tol:
-            return f"the {name} overlaps the object by {depth:.4g}"
+            return f"the {name} overlaps the object by {depth!r}"
     return None

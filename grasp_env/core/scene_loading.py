@@ -278,7 +278,7 @@ def _object(d: Any, width: float) -> ObjectSpec:
         mass = _number(d["mass"], "object.mass", positive=True)
         if not DENSITY_RANGE[0] <= mass / area <= DENSITY_RANGE[1]:
             raise SceneError(
-                f"object.mass {mass!r} gives a mean density (mass / area) of {mass / area:g}, "
+                f"object.mass {mass!r} gives a mean density (mass / area) of {mass / area!r}, "
                 f"outside [{DENSITY_RANGE[0]:g}, {DENSITY_RANGE[1]:g}]"
             )
     else:

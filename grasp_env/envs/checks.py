@@ -30,11 +30,12 @@ def placement_problem(
 def palm_problem(scene: Scene, palm: np.ndarray) -> str | None:
     """Why a palm pose lies outside the env's palm workspace (None if it is inside)."""
     x, y, th = (float(v) for v in palm)
-    w, x0 = scene.palm.width, scene.object.start_pose[0]
+    w, x0 = scene.palm.width, float(scene.object.start_pose[0])
     if abs(x - x0) > PALM_X_RANGE * w or not 0 <= y <= PALM_Y_MAX * w:
         return (
-            f"{[x, y, th]} is outside the palm workspace |x - {x0:.4g}| <= "
-            f"{PALM_X_RANGE * w:.4g}, 0 <= y <= {PALM_Y_MAX * w:.4g}"
+            f"{[x, y, th]} is outside the palm workspace |x - x0| <= {PALM_X_RANGE * w:.6g}, "
+            f"0 <= y <= {PALM_Y_MAX * w:.6g} (x0 = {x0!r}, the object's x at its scene "
+            f"placement: |x - x0| = {abs(x - x0)!r})"
         )
     if abs(th) > PALM_THETA_MAX:
         return f"angle {th!r} is outside [-pi/2, pi/2]"
