@@ -48,7 +48,6 @@ from grasp_env.mechanics import contacts as ct
 from grasp_env.mechanics.width import object_width
 from grasp_env.sim import events as ev
 from grasp_env.sim import move
-from grasp_env.sim.equilibrium import MAX_FOLD_FORCE, MAX_FORCE
 from grasp_env.sim.model import Model, pack
 
 #: Accepted ``contact_tol`` (relative to the palm width), ``[lo, hi)``: below ``lo`` the
@@ -366,8 +365,6 @@ def _finite_floats(value, size: int, name: str) -> tuple | list:
 
 __all__ = [
     "CONTACT_TOL_RANGE",
-    "MAX_FOLD_FORCE",
-    "MAX_FORCE",
     "SimulationError",
     "Simulator",
     "WorkLimitError",

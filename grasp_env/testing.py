@@ -11,21 +11,28 @@ tests and the soak (``benchmarks/soak.py``) check every state they make with :fu
   contact_tol`` and the normal of an edge through its point; every touching vertex-body pair
   is listed;
 * the object's equilibrium residual ``|sum c_i n_i + m g| (+ moment / size)`` below
-  :data:`EQ_RTOL` times its weight, and no admissible descent (the velocity LP's optimum is
-  0).
+  :data:`EQ_RTOL` times its weight (plus the rounding of its terms), and no admissible
+  descent: gravity lies in the cone of the contact wrenches, to :data:`EQ_RTOL` times the
+  weight, once contacts dependent to tolerance are made exactly dependent
+  (:func:`free_rows`, docs/conventions.md, *Mechanics notes*).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from itertools import combinations
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linprog
+from scipy.optimize import nnls
 
-#: Equilibrium residual and descent-LP optimum allowed, as a fraction of the object's weight.
+#: Equilibrium residual and distance of gravity from the contact wrenches' cone allowed, as a
+#: fraction of the object's weight.
 EQ_RTOL = 1e-7
+#: Rounding of a sum of terms, relative to the size of the terms: forces that hold a wedge
+#: grow as one over its angle, and their sum is only as exact as its largest term.
+TERM_ROUNDING = 64 * np.finfo(float).eps
 #: Slack for floating-point rounding on top of ``contact_tol``, as a fraction of the palm width.
 ROUNDING = 1e-13
 #: Largest deviation of a contact normal from a unit vector (and of a support normal from
@@ -122,7 +129,7 @@ class Check:
     penetration: float = -math.inf  # deepest overlap / palm width
     gap: float = 0.0  # worst |gap| of a listed contact / palm width
     residual: float = 0.0  # equilibrium residual / weight
-    descent: float = 0.0  # velocity-LP optimum / weight (negative: an admissible descent)
+    descent: float = 0.0  # minus gravity's distance from the wrenches' cone / weight
     min_force: float = math.inf
     violations: list[str] = field(default_factory=list)
 
@@ -148,7 +155,7 @@ def check_state(
         hand: hand configuration ``(x_p, y_p, theta_p, q1, q2)``, shape (5,).
         contacts: the listed contacts, :class:`grasp_env.Contact` or their ``as_dict()``.
         tol: the contact tolerance as a length (``contact_tol * palm width``).
-        descent: also solve the velocity LP for an admissible descent.
+        descent: also look for an admissible descent.
     """
     out = Check()
     object_pose = np.asarray(object_pose, float)
@@ -163,7 +170,7 @@ def check_state(
     P, N, C = _check_contacts(out, scene, obj, bodies, contacts, tol, limit)
     _check_listed(out, obj, bodies, depths, contacts, limit)
     if all(not v.startswith("nan") for v in out.violations):
-        _check_equilibrium(out, scene, object_pose[:2], P, N, C, descent)
+        _check_equilibrium(out, scene, object_pose[:2], P, N, C, descent, tol)
     return out
 
 
@@ -276,37 +283,57 @@ def _check_listed(out: Check, obj, bodies: dict, depths: dict, contacts: list, l
                 bad.append(f"unlisted: {name} vertex {p.tolist()} touches the object")
 
 
-def _check_equilibrium(out: Check, scene: Any, com, P, N, C, descent: bool) -> None:
+def free_rows(V: np.ndarray, eta: float) -> np.ndarray:
+    """Rows ``V`` (twists as ``(v_x, v_y, size omega)``) with the directions free to
+    tolerance taken out: a pair of rows whose second singular value, or a triple whose third,
+    is at most ``eta`` is dependent along that singular vector, and each of its rows is
+    projected onto the complement of its sets' free directions."""
+    m = len(V)
+    free: list[list[np.ndarray]] = [[] for _ in range(m)]
+    for subset in [*combinations(range(m), 2), *combinations(range(m), 3)]:
+        rank = len(subset) - 1
+        _, sv, vt = np.linalg.svd(V[list(subset)])
+        if sv[rank] > eta:
+            continue
+        for i in subset:
+            z = vt[rank] - sum((vt[rank] @ u) * u for u in free[i])
+            if np.linalg.norm(z) > 1e-6 and len(free[i]) < 2:
+                free[i].append(z / np.linalg.norm(z))
+    out = V.copy()
+    for i in range(m):
+        for u in free[i]:
+            out[i] -= (out[i] @ u) * u
+    return out
+
+
+def _check_equilibrium(out: Check, scene: Any, com, P, N, C, descent: bool, tol: float) -> None:
     """``sum c_i n_i + m g = 0`` with the moment about the centre of mass, and (``descent``)
-    no admissible descent: ``min W v_y s.t. V_ob v >= 0`` (twists scaled by the object size,
-    boxed) has optimum 0."""
+    no admissible descent: gravity within :data:`EQ_RTOL` of the cone of the contact
+    wrenches (free directions taken out, :func:`free_rows`), by non-negative least squares
+    in units of the weight. Its distance from the cone is minus the optimum of ``min g . v
+    s.t. V v >= 0, |v| <= 1``, the steepest admissible descent."""
     bad = out.violations
     W = scene.object_weight
     size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
+    moments = np.array([cross(pi - com, ni) for pi, ni in zip(P, N, strict=True)])
     force = C @ N + np.array([0.0, -W])
-    moment = sum(ci * cross(pi - com, ni) for ci, pi, ni in zip(C, P, N, strict=True))
+    moment = C @ moments if len(C) else 0.0
     out.residual = math.hypot(force[0], force[1], moment / size) / W
-    if not out.residual <= EQ_RTOL:
+    terms = float(C @ (1.0 + np.abs(moments) / size)) / W if len(C) else 0.0
+    if not out.residual <= EQ_RTOL + TERM_ROUNDING * terms:
         bad.append(f"equilibrium: residual {out.residual:.3e} x weight")
     if not descent:
         return
     if not len(C):
         bad.append("equilibrium: no contacts (nothing holds the object)")
         return
-    V = np.column_stack([N, [cross(pi - com, ni) / size for pi, ni in zip(P, N, strict=True)]])
-    res = linprog(
-        [0.0, W, 0.0],
-        A_ub=-V,
-        b_ub=np.zeros(len(V)),
-        bounds=[(-1, 1)] * 3,
-        options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10},
-    )
-    if res.status != 0:
-        bad.append(f"equilibrium: descent LP failed: {res.message}")
-        return
-    out.descent = float(res.fun) / W
-    if out.descent < -EQ_RTOL:
+    V = free_rows(np.column_stack([N, moments / size]), tol / size)
+    lam, dist = nnls(V.T, np.array([0.0, 1.0, 0.0]))
+    out.descent = -float(dist)
+    allowed = EQ_RTOL + TERM_ROUNDING * float(lam @ np.linalg.norm(V, axis=1))
+    if dist > allowed:
+        way = np.array([0.0, -1.0, 0.0]) + V.T @ lam  # minus the residual: the way down
         bad.append(
-            f"equilibrium: admissible descent W v_y = {out.descent:.3e} W along "
-            f"(vx, vy, size w) = {res.x.tolist()}"
+            f"equilibrium: admissible descent: gravity {dist:.3e} W from the contacts' cone, "
+            f"down along (vx, vy, size w) = {(way / np.linalg.norm(way)).tolist()}"
         )

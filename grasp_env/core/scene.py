@@ -53,8 +53,8 @@ GRAVITY_RANGE = (1e-9, 1e9)
 DENSITY_RANGE = (1e-9, 1e9)
 
 #: Largest finite joint torque limit, in object weights x palm widths (the grip LP's torque
-#: unit). A larger one could bind only at contact forces above 1e9 weights, far beyond the
-#: simulator's holding cap (``MAX_FORCE``, 1e6 weights): give ``.inf`` instead.
+#: unit). A larger one could bind only at contact forces above 1e9 weights, beyond what a
+#: grasp resolved to the contact tolerance needs: give ``.inf`` instead.
 MAX_TORQUE = 1e9
 
 #: Largest magnitude of an angle (rad). Beyond one turn an angle is almost surely given in

@@ -2,6 +2,10 @@
 
 Forces are in units of the object's weight ``W`` and moments in ``W`` times the palm width
 (``model.per_length``), so that every tolerance here is unit-free.
+
+Contacts dependent to tolerance (:mod:`grasp_env.sim.dependence`) exert no force along
+their free directions: the object is held only if gravity has no component along one. No
+bound on the forces decides whether the object is held.
 """
 
 from __future__ import annotations
@@ -13,20 +17,13 @@ from numba import njit
 
 from grasp_env.compiled import CACHE
 from grasp_env.sim import contact_sets
+from grasp_env.sim.dependence import free_rows
 from grasp_env.sim.motion import motion_lp
 from grasp_env.sim.placement import contact_rows
 from grasp_env.sim.pose import constraint_matrix, independent_forces
 from grasp_env.solvers import dense
 from grasp_env.solvers.velocity_lp import OPTIMAL
 
-#: Largest contact force, in object weights, that counts as holding the object.
-MAX_FORCE = 1e6
-#: Largest contact force, in object weights, of an object wedged at a fold that counts as
-#: holding it where a fall would start, its forces balancing it to their own rounding
-#: (:data:`ROUNDING`): the forces of a wedge grow as one over the offset of its contacts'
-#: lines of action, and beyond this their rounding alone (16 machine epsilons of 1e7, 4e-8
-#: weights) nears the equilibrium tolerance of an independent check (1e-7 weights).
-MAX_FOLD_FORCE = 1e7
 #: Residual of an equilibrium that is rounding, relative to the size of the forces' terms
 #: (``|V^T| lam``): at a fold the forces that hold the object grow without bound, and their
 #: rounding alone leaves a residual above any fixed tolerance.
@@ -35,28 +32,28 @@ ROUNDING = 16.0 * dense.EPS
 
 @njit(cache=CACHE)
 def wrench_rows(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> np.ndarray:
-    """``V_ob`` (m, 3) of the contacts ``keys`` with moments per palm width."""
+    """``V_ob`` (m, 3) of the contacts ``keys``, free directions taken out
+    (:func:`grasp_env.sim.dependence.free_rows`), with moments per palm width."""
     P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
-    return constraint_matrix(P, N, com) * model.per_length
+    return free_rows(model, constraint_matrix(P, N, com)) * model.per_length
 
 
 @njit(cache=CACHE)
 def held(
-    model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, max_force: float,
-    rounding: float,
-) -> bool:  # fmt: skip
+    model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, rounding: float
+) -> bool:
     """True when the contacts ``keys`` hold the object against gravity: non-negative forces
     balance it to ``ftol`` plus ``rounding`` times the size of their terms (0, or
-    :data:`ROUNDING` where forces without bound count), none beyond ``max_force`` weights (a
-    wedge between faces parallel to rounding would need them, and in double precision they
-    no longer balance). At a vertex-vertex touch the object may move along either
-    candidate's edge: it is held only if every choice of candidates holds it."""
+    :data:`ROUNDING` for a state the hand stops at, whose forces may be large), with the
+    directions free to tolerance taken out (:func:`~grasp_env.sim.dependence.free_rows`:
+    gravity along one is not balanced). At a vertex-vertex touch the object may move along
+    either candidate's edge: it is held only if every choice of candidates holds it."""
     if keys.shape[0] == 0:
         return False
     for choice in contact_sets.choices(model, world, keys):
         W = wrench_rows(model, world, com, choice).T.copy()
         lam, res = dense.nnls(W, model.gravity)
-        if res > ftol + rounding * _term_size(W, lam) or lam.max() > max_force * model.weight:
+        if res > ftol + rounding * _term_size(W, lam):
             return False
     return True
 

@@ -18,7 +18,8 @@ from numba import njit
 from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import consistency, contact_sets, detection
-from grasp_env.sim.equilibrium import MAX_FOLD_FORCE, MAX_FORCE, ROUNDING, held
+from grasp_env.sim.dependence import free_rows
+from grasp_env.sim.equilibrium import ROUNDING, held
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
 from grasp_env.sim.pose import constraint_matrix
@@ -46,16 +47,18 @@ def held_here(model, q: np.ndarray, h: np.ndarray, ftol: float) -> bool:
     """Whether the contacts touching at ``(q, h)`` hold the object, to ``ftol``."""
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
-    return held(model, world, q[:2], keys, ftol, MAX_FORCE, 0.0)
+    return held(model, world, q[:2], keys, ftol, 0.0)
 
 
 @njit(cache=CACHE)
 def descent(model, world: np.ndarray, q: np.ndarray, keys: np.ndarray):
     """Steepest admissible descent (scaled twist) for contacts ``keys``, and the contacts it
-    keeps closed: ``a = argmin |a - g|^2 s.t. C a >= 0`` (gravity projected on the cone)."""
+    keeps closed: ``a = argmin |a - g|^2 s.t. C a >= 0`` (gravity projected on the cone), the
+    directions free to tolerance admissible both ways
+    (:func:`grasp_env.sim.dependence.free_rows`)."""
     g = np.array([0.0, -1.0, 0.0])
     P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
-    Cs = constraint_matrix(P, N, q[:2]) * model.scale
+    Cs = free_rows(model, constraint_matrix(P, N, q[:2])) * model.scale
     w, ok = least_norm.least_norm(np.zeros((0, 3)), np.zeros(0), Cs, -dense.matvec(Cs, g), 1e-10)
     if not ok:
         raise SimulationError("fall direction infeasible")
@@ -188,11 +191,10 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
         world = place(model, q, h)
         keys = touching(model, world, contact_sets.empty())
         # Held only to rounding: near the boundary of equilibrium a residual within the usual
-        # tolerance still leaves a way down, which the descent below finds. A wedge at a fold
-        # is held by forces beyond MAX_FORCE (up to MAX_FOLD_FORCE) that balance it to their
-        # own rounding: every descent from there would be that rounding. (Forces within
-        # MAX_FORCE balancing it to 1e-12 weights pass this test as well.)
-        if held(model, world, q[:2], keys, 1e-12 * model.weight, MAX_FOLD_FORCE, ROUNDING):
+        # tolerance still leaves a way down, which the descent below finds. A wedge is held
+        # by large forces that balance it to their own rounding: every descent from there
+        # would be that rounding.
+        if held(model, world, q[:2], keys, 1e-12 * model.weight, ROUNDING):
             events.append((FALL_END, s, keys))
             return q, moved
         q_rest, found = cradle(model, q, h, keys, solves)
@@ -272,7 +274,7 @@ def nudge(model, q, s, E, v, h0, dh, s_end, solves):
 def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
     """Nudge the hand past the boundary of equilibrium (:func:`nudge`) and let the object
     fall to rest there: ``(s, q, found)``; not found where nothing falls there either (an
-    object wedged at a fold, held by forces beyond ``MAX_FORCE``)."""
+    object wedged at a fold, held by forces that balance it only to their rounding)."""
     s_new, q_new, found = nudge(model, q, s, E, v, h0, dh, s_end, solves)
     if not found:
         return s, q, False

@@ -324,5 +324,5 @@ def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
     is a failure, not a state."""
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
-    if not held(model, world, q[:2], keys, model.ftol, np.inf, ROUNDING):
+    if not held(model, world, q[:2], keys, model.ftol, ROUNDING):
         raise SimulationError("jam at s =", s, "with the object neither held nor falling")

@@ -15,6 +15,7 @@ from numba import njit, objmode
 
 from grasp_env.compiled import CACHE
 from grasp_env.sim import contact_sets
+from grasp_env.sim.dependence import free_rows
 from grasp_env.sim.hand import contact_xi
 from grasp_env.sim.placement import contact_rows
 from grasp_env.sim.pose import constraint_matrix
@@ -64,7 +65,7 @@ def solve_lp(
     m = keys.shape[0]
     L = model.length
     P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
-    V = constraint_matrix(P, N, q[:2])
+    V = free_rows(model, constraint_matrix(P, N, q[:2]))
     xi = contact_xi(model, h, dh, keys, P, N)
     Vl = V * model.per_length
     if m > 0 and np.all(xi == 0.0):

@@ -72,9 +72,12 @@ def newton(
     """Solve ``phi_E(q, h) = 0`` from ``q0`` by least-motion Newton steps: ``(q, ok)``.
 
     Converged when every gap is within ``newton_tol``. Dependent equations (more than three
-    contacts, or several on one straight edge) may be consistent only to the contacts' own
-    tolerance: they count as solved when least squares stalls within half of ``tol``. A step
-    larger than the object's ``size`` left Newton's basin.
+    contacts, several on one straight edge, or equations dependent to tolerance: singular
+    values of the scaled Jacobian at most ``tol / size``, along which a displacement of the
+    object's size changes no gap by more than ``tol``) may be consistent only to the
+    contacts' own tolerance: no step is taken along their dependent directions, and they
+    count as solved when least squares stalls within half of ``tol``. A step larger than the
+    object's ``size`` left Newton's basin.
     """
     m = keys.shape[0]
     q = q0.copy()
@@ -96,10 +99,12 @@ def newton(
             for k in range(3):
                 J[i, k] *= scale[k]
         ok = False
-        if m == 3 and abs(dense.det(J)) > 1e-8:
-            du, ok = dense.solve(J, -F)  # square and well conditioned: no SVD needed
+        # square and well conditioned (its smallest singular value above tol / size, as the
+        # rows, of norm at most 4, bound the other two): no SVD needed
+        if m == 3 and abs(dense.det(J)) > max(1e-8, 16.0 * tol / size):
+            du, ok = dense.solve(J, -F)
         if not ok:
-            du, rank = dense.lstsq(J, -F, 1e-12)
+            du, rank = dense.lstsq(J, -F, 1e-12, tol / size)
             redundant = rank < m
         if np.abs(du).max() > size:
             return q, False  # a near-singular step far outside Newton's basin

@@ -212,17 +212,17 @@ def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @njit(cache=CACHE)
-def lstsq(A: np.ndarray, b: np.ndarray, rcond: float) -> tuple[np.ndarray, int]:
+def lstsq(A: np.ndarray, b: np.ndarray, rcond: float, floor: float = 0.0) -> tuple[np.ndarray, int]:
     """Least-norm least-squares solution of ``A x ~ b`` and the rank used.
 
     Singular values at most ``rcond`` times the largest count as zero (numpy's ``lstsq``
-    convention; ``rcond < 0`` means ``EPS * max(m, n)``).
+    convention; ``rcond < 0`` means ``EPS * max(m, n)``), and so do those at most ``floor``.
     """
     m, n = A.shape
     U, s, V = svd(A)
     if rcond < 0.0:
         rcond = EPS * max(m, n)
-    cut = rcond * (s[0] if n > 0 else 0.0)
+    cut = max(rcond * (s[0] if n > 0 else 0.0), floor)
     x = np.zeros(n)
     rank = 0
     for k in range(n):

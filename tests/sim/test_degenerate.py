@@ -51,7 +51,8 @@ def scene(
 
 
 def valid(state: grasp_env.State, where: str = "") -> None:
-    chk = testing.check_state(state.scene, state.object_pose, state.hand, state.contacts, TOL)
+    tol = TOL * state.scene.palm.width  # the contact tolerance at the scene's scale
+    chk = testing.check_state(state.scene, state.object_pose, state.hand, state.contacts, tol)
     assert not chk.violations, f"{where}: " + "; ".join(chk.violations)
 
 

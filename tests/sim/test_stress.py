@@ -362,9 +362,9 @@ def test_regression_soak_seed2_shape135() -> None:
     With the simulator of commit ffaa429 plus uncommitted changes (02:30 UTC), step 138 reported
     a jam with the sliver wedged between exactly anti-parallel finger faces, contact forces
     of 1e11-2e12 x weight, an equilibrium residual of 5.7e-3 x weight and a free descent
-    along the faces (the sliver should slide down between them). Fixed by the simulator's
-    force cap (``simulator.MAX_FORCE``). Takes 30 s to 3 min (every step is checked by LPs),
-    hence ``slow``."""
+    along the faces (the sliver should slide down between them). Faces parallel to tolerance
+    are free along each other since (``grasp_env.sim.dependence``). Takes 30 s to 3 min
+    (every step is checked), hence ``slow``."""
     rec = soak.soak_shape(2, 135, 139)
     assert rec["exceptions"] == rec["sim_errors"] == rec["violating_steps"] == 0, rec["examples"]
 
