@@ -160,6 +160,24 @@ def build_config(
     return config
 
 
+def compile_env(entry: dict[str, Any], env_id: str, seed: int) -> float:
+    """Reset the entry's env and take one step in this process; returns the seconds taken.
+
+    The first step after an install compiles the simulator (numba) and caches the machine
+    code on disk (``grasp_env.compiled``), which takes minutes on two cores. Done here, before
+    Ray starts, the env runners of this machine load it from the cache: compiling it in every
+    runner at once outlasts the time RLlib waits for their samples."""
+    start = time.perf_counter()
+    env = EntryEnv(env_config(entry, env_id))
+    try:
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        env.step(env.action_space.sample())
+    finally:
+        env.close()
+    return time.perf_counter() - start
+
+
 # ---------------------------------------------------------------------- ray
 def check_address(text: str) -> str:
     """``auto``, ``HOST:PORT`` or ``ray://HOST:PORT``."""
@@ -233,10 +251,13 @@ def _metric(result: dict[str, Any], key: str) -> float:
 
 
 def env_steps(result: dict[str, Any]) -> int:
-    """Env steps sampled so far (all env runners)."""
+    """Env steps sampled so far (all env runners): 0 before any env runner has returned
+    samples (RLlib ends an iteration early, without that count, when none does within
+    ``env_runners.sample_timeout_s``, 60 s by default)."""
     from ray.rllib.utils.metrics import NUM_ENV_STEPS_SAMPLED_LIFETIME
 
-    return int(_metric(result, NUM_ENV_STEPS_SAMPLED_LIFETIME))
+    steps = _metric(result, NUM_ENV_STEPS_SAMPLED_LIFETIME)
+    return 0 if math.isnan(steps) else int(steps)
 
 
 def progress_line(iteration: int, result: dict[str, Any], rate: float, seconds: float) -> str:
@@ -282,7 +303,10 @@ def train(
         seconds = time.perf_counter() - start
         iteration += 1
         new_steps = env_steps(result)
-        log(progress_line(iteration, result, (new_steps - steps) / seconds, seconds))
+        line = progress_line(iteration, result, (new_steps - steps) / seconds, seconds)
+        if new_steps == steps:
+            line += "  no env runner returned samples in time"
+        log(line)
         steps, wall = new_steps, wall + seconds
         if checkpoint is not None and iteration % checkpoint_every == 0:
             algo.save_to_path(checkpoint)
@@ -369,6 +393,8 @@ def main(argv: list[str] | None = None) -> None:
 
     args, entry = parse_args(argv)
     torch.set_num_threads(1)  # the learner, as in agents.train_ppo
+    if (seconds := compile_env(entry, args.env, args.seed)) > 10:
+        print(f"compiled the simulator in {seconds:.0f} s (cached for later runs)", flush=True)
     try:
         start_ray(
             args.address,
