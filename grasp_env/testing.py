@@ -286,22 +286,37 @@ def _check_listed(out: Check, obj, bodies: dict, depths: dict, contacts: list, l
 def free_rows(V: np.ndarray, eta: float) -> np.ndarray:
     """Rows ``V`` (twists as ``(v_x, v_y, size omega)``) with the directions free to
     tolerance taken out: a pair of rows whose second singular value, or a triple whose third,
-    is at most ``eta`` is dependent along that singular vector, and each of its rows is
-    projected onto the complement of its sets' free directions."""
-    m = len(V)
-    free: list[list[np.ndarray]] = [[] for _ in range(m)]
-    for subset in [*combinations(range(m), 2), *combinations(range(m), 3)]:
-        rank = len(subset) - 1
-        _, sv, vt = np.linalg.svd(V[list(subset)])
-        if sv[rank] > eta:
+    is at most ``eta`` is dependent along that singular vector; sets whose vectors agree to
+    1e-6 rad share one dependence, whose direction is that of all their rows together, and
+    each of its rows is projected onto the complement of its dependences' directions."""
+
+    def telling(rows: list[int]) -> tuple[float, np.ndarray]:
+        k = min(len(rows), 3) - 1  # a pair's third singular value is always zero
+        _, sv, vt = np.linalg.svd(V[rows])
+        return sv[k], vt[k]
+
+    groups: list[tuple[np.ndarray, set[int]]] = []
+    for subset in [*combinations(range(len(V)), 2), *combinations(range(len(V)), 3)]:
+        value, z = telling(list(subset))
+        if value > eta:
             continue
-        for i in subset:
-            z = vt[rank] - sum((vt[rank] @ u) * u for u in free[i])
-            if np.linalg.norm(z) > 1e-6 and len(free[i]) < 2:
-                free[i].append(z / np.linalg.norm(z))
+        for w, rows in groups:
+            if np.linalg.norm(np.cross(z, w)) <= 1e-6:
+                rows.update(subset)
+                break
+        else:
+            groups.append((z, set(subset)))
     out = V.copy()
-    for i in range(m):
-        for u in free[i]:
+    for i in range(len(V)):
+        basis: list[np.ndarray] = []
+        for _, rows in groups:
+            if i not in rows:
+                continue
+            z = telling(sorted(rows))[1]
+            z = z - sum((z @ u) * u for u in basis)
+            if np.linalg.norm(z) > 1e-6 and len(basis) < 2:
+                basis.append(z / np.linalg.norm(z))
+        for u in basis:
             out[i] -= (out[i] @ u) * u
     return out
 

@@ -24,6 +24,10 @@ from grasp_env.solvers import dense
 #: Most free directions one contact can take part in: a row dependent along three directions
 #: would be zero, and every row holds a unit normal.
 MAX_FREE = 2
+#: Free directions of dependent sets that differ by less than this angle (rad) are one: the
+#: sets share a dependence (say, two faces flush at both ends), and their singular vectors
+#: differ only by the rounding of its rows.
+SAME_DIRECTION = 1e-6
 
 
 @njit(cache=CACHE)
@@ -33,12 +37,14 @@ def free_rows(model, V: np.ndarray) -> np.ndarray:
 
     With ``d = (v_x, v_y, size omega)`` a twist as the displacement it gives the object's
     farthest vertex, a pair of rows whose second singular value, or a triple whose third,
-    is at most ``eta = tol / size`` is dependent to tolerance along its singular vector
-    ``z``: moving the object by its own size along ``z`` changes neither gap by more than
-    ``tol``. Each row of such a set is projected onto the complement of its sets' free
-    directions, so that those contacts are exactly dependent and ``z`` is free for them;
-    the other rows are kept as they are (the support under an object pinched between
-    parallel faces still holds it up)."""
+    is at most ``eta = tol / size`` is dependent to tolerance along that singular vector
+    ``z``: moving the object by its own size along ``z`` changes none of their gaps by more
+    than ``tol``. Sets whose directions agree (to :data:`SAME_DIRECTION`) share one
+    dependence: its direction is taken from all their rows at once (the singular vector of
+    their union), so that every row of it is projected along the very same direction and
+    the projected rows are exactly dependent, to rounding. Each such row is projected onto
+    the complement of its dependences' directions; the other rows are kept as they are (the
+    support under an object pinched between parallel faces still holds it up)."""
     m = V.shape[0]
     if m < 2:
         return V
@@ -46,9 +52,8 @@ def free_rows(model, V: np.ndarray) -> np.ndarray:
     Vs = V.copy()
     for i in range(m):
         Vs[i, 2] /= model.size
-    dirs = np.zeros((m, MAX_FREE, 3))  # each row's free directions, orthonormal
-    count = np.zeros(m, dtype=np.int64)
-    found = False
+    groups = np.zeros((0, 3))  # a direction of each dependence
+    members = np.zeros((0, m), dtype=np.bool_)  # the rows of each dependence
     for i in range(m):
         for j in range(i + 1, m):
             a, b = Vs[i], Vs[j]
@@ -56,25 +61,39 @@ def free_rows(model, V: np.ndarray) -> np.ndarray:
             cy = a[2] * b[0] - a[0] * b[2]
             cz = a[0] * b[1] - a[1] * b[0]
             # |a x b| = s1 s2 <= (|a| + |b|) s2: only a pair that may pass is decomposed
-            bound = (_norm(a) + _norm(b)) * eta
-            if math.sqrt(cx * cx + cy * cy + cz * cz) <= bound:
-                found = _mark(Vs, np.array([i, j]), 1, eta, dirs, count) or found
+            if math.sqrt(cx * cx + cy * cy + cz * cz) <= (_norm(a) + _norm(b)) * eta:
+                groups, members = _join(Vs, np.array([i, j]), eta, groups, members)
             for k in range(j + 1, m):
                 c = Vs[k]
                 det = cx * c[0] + cy * c[1] + cz * c[2]
                 # |det| = s1 s2 s3 <= |V_S|_F^2 s3 / 2
-                frob = _norm(a) ** 2 + _norm(b) ** 2 + _norm(c) ** 2
-                if abs(det) <= 0.5 * frob * eta:
-                    found = _mark(Vs, np.array([i, j, k]), 2, eta, dirs, count) or found
-    if not found:
+                if abs(det) <= 0.5 * (_norm(a) ** 2 + _norm(b) ** 2 + _norm(c) ** 2) * eta:
+                    groups, members = _join(Vs, np.array([i, j, k]), eta, groups, members)
+    if groups.shape[0] == 0:
         return V
+    for g in range(groups.shape[0]):
+        groups[g] = _smallest(Vs[members[g]].copy())[1]  # from all the rows at once
+    out = Vs.copy()
     for i in range(m):
-        for t in range(count[i]):
-            along = Vs[i, 0] * dirs[i, t, 0] + Vs[i, 1] * dirs[i, t, 1] + Vs[i, 2] * dirs[i, t, 2]
+        basis = np.zeros((MAX_FREE, 3))
+        count = 0
+        for g in range(groups.shape[0]):
+            if not members[g, i] or count == MAX_FREE:
+                continue
+            z = groups[g].copy()
+            for t in range(count):
+                z -= (z[0] * basis[t, 0] + z[1] * basis[t, 1] + z[2] * basis[t, 2]) * basis[t]
+            size = _norm(z)
+            if size > SAME_DIRECTION:
+                basis[count] = z / size
+                count += 1
+        for t in range(count):
+            along = out[i, 0] * basis[t, 0] + out[i, 1] * basis[t, 1] + out[i, 2] * basis[t, 2]
             for j in range(3):
-                Vs[i, j] -= along * dirs[i, t, j]
-        Vs[i, 2] *= model.size
-    return Vs
+                out[i, j] -= along * basis[t, j]
+    for i in range(m):
+        out[i, 2] *= model.size
+    return out
 
 
 @njit(cache=CACHE)
@@ -83,26 +102,39 @@ def _norm(a: np.ndarray) -> float:
 
 
 @njit(cache=CACHE)
-def _mark(Vs, rows, rank: int, eta: float, dirs, count) -> bool:
-    """Whether the rows ``rows`` of ``Vs`` are dependent to tolerance (their singular value
-    number ``rank + 1`` at most ``eta``); if so, its singular vector is added to each row's
-    free directions (orthonormalised against those it has; one already in their span is
-    not added again)."""
+def _smallest(sub: np.ndarray) -> tuple[float, np.ndarray]:
+    """The singular value and right singular vector of ``sub``'s rows (2 or more) that tell
+    its dependence: the second of a pair (whose third is always zero), else the third."""
+    _, sv, Z = dense.svd(sub)
+    k = min(sub.shape[0], 3) - 1
+    return sv[k], Z[:, k].copy()
+
+
+@njit(cache=CACHE)
+def _join(Vs, rows: np.ndarray, eta: float, groups: np.ndarray, members: np.ndarray):
+    """``(groups, members)`` with the set ``rows`` of ``Vs`` added where it is dependent to
+    tolerance (its telling singular value at most ``eta``): to the dependence of the same
+    direction, or as a new one."""
     sub = np.empty((rows.shape[0], 3))
     for r in range(rows.shape[0]):
         sub[r] = Vs[rows[r]]
-    _, sv, Z = dense.svd(sub)
-    if sv[rank] > eta:
-        return False
+    value, z = _smallest(sub)
+    if value > eta:
+        return groups, members
+    for g in range(groups.shape[0]):
+        w = groups[g]
+        cx = z[1] * w[2] - z[2] * w[1]
+        cy = z[2] * w[0] - z[0] * w[2]
+        cz = z[0] * w[1] - z[1] * w[0]
+        if math.sqrt(cx * cx + cy * cy + cz * cz) <= SAME_DIRECTION:
+            for r in range(rows.shape[0]):
+                members[g, rows[r]] = True
+            return groups, members
+    new_groups = np.empty((groups.shape[0] + 1, 3))
+    new_groups[:-1] = groups
+    new_groups[-1] = z
+    new_members = np.zeros((members.shape[0] + 1, members.shape[1]), dtype=np.bool_)
+    new_members[:-1] = members
     for r in range(rows.shape[0]):
-        i = rows[r]
-        z = Z[:, rank].copy()
-        for t in range(count[i]):
-            along = z[0] * dirs[i, t, 0] + z[1] * dirs[i, t, 1] + z[2] * dirs[i, t, 2]
-            z -= along * dirs[i, t]
-        size = _norm(z)
-        if size <= 1e-6 or count[i] == MAX_FREE:
-            continue  # already free along it
-        dirs[i, count[i]] = z / size
-        count[i] += 1
-    return True
+        new_members[-1, rows[r]] = True
+    return new_groups, new_members
