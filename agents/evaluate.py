@@ -75,7 +75,7 @@ SCRIPTED_KWARGS = {"palm_control": True, "start": "scene"}
 #: Env set-up of the random policy: the paper's (palm fixed where the scene puts it).
 RANDOM_KWARGS = {"palm_control": False, "start": "scene"}
 #: Env kwargs that a suite sets and a policy's own set-up must not override.
-SUITE_KEYS = ("scene", "shape_randomizer", "start")
+SUITE_KEYS = ("scene", "shape_randomizer", "start", "time_limit", "shape_pool")
 GIF_SCENE, GIF_SIZE, GIF_EVERY = "fig13", (320, 240), 2
 BOOTSTRAP_SAMPLES = 2000
 
@@ -187,7 +187,7 @@ class Episode:
 def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extra) -> gym.Env:
     kwargs = {**spec.env_kwargs, **suite_kwargs, **extra}
     if max_steps is not None:
-        kwargs["max_episode_steps"] = max_steps
+        kwargs["time_limit"] = max_steps
     env = gym.make("FrictionlessGrasp-v0", **kwargs)
     if spec.wrapper is None:
         return env

@@ -31,8 +31,8 @@ import numpy as np
 
 from agents.scripted import ScriptedPolicy
 from grasp_env.arguments import real_vector
-from grasp_env.envs.observation import GRIP_MAX
 from grasp_env.errors import ComputationError
+from grasp_env.kernel.observation import GRIP_MAX
 from grasp_env.planning.plan import grip_if_closed
 
 #: Resets at most per episode with ``redraw`` before a shape is kept (here and in

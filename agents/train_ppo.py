@@ -72,9 +72,16 @@ ENTRY_KEYS = (
 #: Offset of the evaluation env's seed from the training seed (training envs use ``seed ..
 #: seed + n_envs - 1``; ``rl_zoo3.train`` seeds its evaluation env like training env 0).
 EVAL_SEED_OFFSET = 1000
-#: Measured on the 2-core machine (docs/training.md): with the current simulator DummyVecEnv
-#: is as fast or faster for 2 envs (SubprocVecEnv won only while a step was 3x slower).
-DEFAULT_VEC_ENV = "dummy"
+#: ``"auto"``: the batched env (:mod:`agents.batched`, every env stepped by one compiled
+#: call) where the entry has several envs and no wrapper but ``TrainingInfo`` (whose work it
+#: does), else DummyVecEnv (measured as fast as SubprocVecEnv for 2 envs on 2 cores).
+DEFAULT_VEC_ENV = "auto"
+VEC_ENVS = ("auto", "batched", "dummy", "subproc")
+#: Wrappers the batched env stands in for: it passes on only what training reads.
+BATCHED_WRAPPERS = frozenset({"agents.train_ppo.TrainingInfo"})
+#: Env kwargs the evaluation during training leaves out: the reward weights (it reports the
+#: env's own return) and the shape pool (it meets new shapes).
+TRAINING_ONLY = ("reward_", "shape_pool")
 DEFAULT_CONFIG = "configs/ppo.yml"
 DEFAULT_LOG_FOLDER = "runs"
 MODEL_DIR = Path(__file__).resolve().parent / "models"
@@ -531,12 +538,17 @@ def make_vec_env(
     vec_env: str = DEFAULT_VEC_ENV,
     monitor_dir: str | os.PathLike | None = None,
 ):
-    """``n_envs`` envs of an entry in a Dummy/SubprocVecEnv, seeded ``seed + rank`` (for
-    ``benchmarks.ppo_throughput``, which times PPO without the zoo)."""
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    """``n_envs`` envs of an entry in the batched env or a Dummy/SubprocVecEnv
+    (:func:`vec_env_of`), seeded ``seed + rank`` (for ``benchmarks.ppo_throughput``, which
+    times PPO without the zoo)."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
-    if vec_env not in ("subproc", "dummy"):
-        raise ValueError(f"vec_env must be 'subproc' or 'dummy', got {vec_env!r}")
+    vec_env = vec_env_of({**entry, "n_envs": n_envs}, vec_env)
+    if vec_env == "batched":
+        from agents.batched import make_vec_env as batched_vec_env
+
+        venv = batched_vec_env(entry["env_id"], n_envs, seed, **(entry.get("env_kwargs") or {}))
+        return VecMonitor(venv, None if monitor_dir is None else str(Path(monitor_dir) / "0"))
     factories = [
         _env_factory(
             entry["env_id"],
@@ -563,20 +575,70 @@ def _manager_class():
         evaluation env only those given on its command line), so that it reports the env's
         own return on the task trained."""
 
+        #: Whether the training envs are the batched env (set after construction).
+        batched = False
+
         def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False):
+            if not eval_env and self.batched:
+                return self._batched_envs(n_envs, no_log)
             if not eval_env:
                 return super().create_envs(n_envs, eval_env, no_log)
             seed, self.seed = self.seed, self.seed + EVAL_SEED_OFFSET
-            kwargs = self.eval_env_kwargs
+            kwargs, wrapper = self.eval_env_kwargs, self.vec_env_wrapper
+            if self.batched:  # wrapped like the training envs, for SB3's statistics sync
+                self.vec_env_wrapper = _monitored(wrapper)
             self.eval_env_kwargs = {
-                k: v for k, v in (self.env_kwargs or {}).items() if not k.startswith("reward_")
+                k: v for k, v in (self.env_kwargs or {}).items() if not k.startswith(TRAINING_ONLY)
             }
             try:
                 return super().create_envs(n_envs, eval_env, no_log)
             finally:
-                self.seed, self.eval_env_kwargs = seed, kwargs
+                self.seed, self.eval_env_kwargs, self.vec_env_wrapper = seed, kwargs, wrapper
+
+        def _batched_envs(self, n_envs: int, no_log: bool):
+            """The training envs as the batched env, with the zoo's monitor (one file for
+            all envs), vec-env wrapper and normalization."""
+            from stable_baselines3.common.vec_env import VecMonitor
+
+            from agents.batched import make_vec_env as batched_vec_env
+
+            env = batched_vec_env(self.env_name.gym_id, n_envs, self.seed, **self.env_kwargs)
+            log = None if no_log else os.path.join(self.save_path, "0")
+            env = VecMonitor(env, log, **self.monitor_kwargs)
+            if self.vec_env_wrapper is not None:
+                env = self.vec_env_wrapper(env)
+            return self._maybe_normalize(env, False)
 
     return Manager
+
+
+def _monitored(wrapper):
+    """A vec-env wrapper that puts a ``VecMonitor`` (no file) under ``wrapper``."""
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    def wrap(env):
+        env = VecMonitor(env)
+        return env if wrapper is None else wrapper(env)
+
+    return wrap
+
+
+def vec_env_of(entry: dict[str, Any], vec_env: str) -> str:
+    """The vector env a run uses: ``vec_env``, with ``"auto"`` resolved (batched where the
+    entry has several envs and no wrapper the batched env cannot stand in for); ValueError
+    where ``"batched"`` is asked for an entry it cannot run."""
+    if vec_env not in VEC_ENVS:
+        raise ValueError(f"vec_env must be one of {list(VEC_ENVS)}, got {vec_env!r}")
+    wrappers = {name for name, _ in _named_items(entry.get("env_wrapper"), "env_wrapper")}
+    possible = wrappers <= BATCHED_WRAPPERS
+    if vec_env == "batched" and not possible:
+        raise ValueError(
+            f"vec_env='batched' steps the env itself, without the wrappers "
+            f"{sorted(wrappers - BATCHED_WRAPPERS)}: use 'dummy' or 'subproc'"
+        )
+    if vec_env == "auto":
+        return "batched" if possible and int(entry.get("n_envs", 1)) > 1 else "dummy"
+    return vec_env
 
 
 def prepare(
@@ -658,6 +720,7 @@ def train(
     from stable_baselines3.common.utils import set_random_seed
 
     env_id, entry = prepare(env_id, conf_file, hyperparams, n_timesteps)
+    vec_env = vec_env_of(entry, vec_env)
     overrides = {**(hyperparams or {})}
     total = int(float(entry["n_timesteps"]))
     torch.set_num_threads(num_threads)  # 1: measured faster on 2 shared cores
@@ -695,12 +758,13 @@ def train(
             seed=seed,
             log_interval=-1,  # SB3's default
             verbose=verbose,
-            vec_env_type=vec_env,
+            vec_env_type="dummy" if vec_env == "batched" else vec_env,
             device=device,
             config=str(conf_file),
             show_progress=progress,
             trained_agent=_zoo_layout(trained_agent, env_id, staging) if trained_agent else "",
         )
+        manager.batched = vec_env == "batched"
         run = Path(manager.save_path)
         manager.tensorboard_log = str(run / "tb")
         model, saved = manager.setup_experiment()
@@ -1009,8 +1073,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--vec-env",
         default=DEFAULT_VEC_ENV,
-        choices=["dummy", "subproc"],
-        help="vector env class of the training envs",
+        choices=VEC_ENVS,
+        help="vector env of the training envs (auto: the batched env where the entry has "
+        "several envs and no wrapper but TrainingInfo, else dummy)",
     )
     p.add_argument("--num-threads", type=positive_int, default=1, metavar="N", help="torch threads")
     p.add_argument(

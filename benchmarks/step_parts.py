@@ -1,18 +1,19 @@
-"""The two parts of an env step, timed without a profiler: the env's shell and the move.
+"""The two parts of an env step, timed without a profiler: the env's Python shell and the
+compiled move.
 
-* **The env's shell** (action check, analysis, reward, observation, info, and the wrappers
-  ``gymnasium.make`` adds): ``env.step`` with the simulator's move replaced by a fixed
-  result, so that only the shell runs. Two cases per set-up: the move keeps the contacts
-  (the step reuses the last state's analysis, as most steps do), and the move alternates
-  between two states with different contacts (form closure, ``y*`` where needed, and the
-  observation's contact part are computed afresh every step).
-* **The compiled move by the work it does**: the moves of seeded random-action steps, each
-  classed by what it took (the hand stayed clear of an object resting on the support; no pose
-  solve; 1-3, 4-9, 10 or more pose solves), with the class's share of the steps and of the
-  move time, its median time per call from Python (dispatch and the results' conversion
-  included) and the allocations the compiled code makes per move (numba's own counters,
-  which only a process started with ``NUMBA_NRT_STATS=1`` keeps: a child process counts them
-  on the same steps).
+* **The env's shell** (action check, the call into the compiled step, the state and info
+  dict it returns): ``env.step`` with the compiled step (:func:`grasp_env.kernel.step.
+  step_env`) replaced by a fixed result, so that only the shell runs. Two cases per set-up:
+  the step keeps the contacts (the state keeps the last one's contacts), and it alternates
+  between two states with different contacts (their contacts are made afresh every step).
+* **The compiled move by the work it does**: the moves of seeded random-action steps,
+  replayed through :meth:`grasp_env.Simulator.move_arrays` and classed by what they took
+  (the hand stayed clear of an object resting on the support; no pose solve; 1-3, 4-9, 10 or
+  more pose solves), with the class's share of the steps and of the move time, its median
+  time per call from Python (dispatch and the results' conversion included) and the
+  allocations the compiled code makes per move (numba's own counters, which only a process
+  started with ``NUMBA_NRT_STATS=1`` keeps: a child process counts them on the same
+  steps).
 
 Usage: ``python -m benchmarks.step_parts [--quick] [--steps N] [--out FILE]``
 """
@@ -34,8 +35,9 @@ import numpy as np
 import grasp_env  # noqa: F401  (registers the env ids)
 from benchmarks.common import OUT, REPO, headless, table, write
 from benchmarks.throughput import RandomActions
-from grasp_env.sim.move import OUT_UNTOUCHED
-from grasp_env.simulator import Simulator
+from grasp_env.envs.episode import state_arrays
+from grasp_env.kernel import step as kernel
+from grasp_env.sim.move import OUT_SIZE, OUT_UNTOUCHED
 
 #: Set-ups measured: name -> ``gymnasium.make`` keyword arguments.
 CONFIGS = {
@@ -54,8 +56,7 @@ CLASSES = {
 
 
 SHELL_HEADER = [
-    "set-up", "contacts kept, bare env", "contacts kept, wrapped", "contacts changing, bare env",
-    "contacts changing, wrapped",
+    "set-up", "contacts kept", "contacts changing",
 ]  # fmt: skip
 MOVE_HEADER = [
     "set-up", "move", "% of steps", "% of move time", "median us/move", "allocations/move"
@@ -68,30 +69,38 @@ def record_moves(kwargs: dict, steps: int, count_allocations: bool = False) -> l
     ``NUMBA_NRT_STATS=1`` set before numba was imported)."""
     from numba.core.runtime import rtsys
 
-    moves = []
-    move = Simulator._move
+    moves, calls = [], []
+    step_env = kernel.step_env
 
-    def timed(sim, q0, h0, h1, known):
-        allocs = rtsys.get_allocation_stats().alloc if count_allocations else 0
-        t0 = time.perf_counter()
-        out = move(sim, q0, h0, h1, known)
-        seconds = time.perf_counter() - t0
-        if count_allocations:
-            allocs = rtsys.get_allocation_stats().alloc - allocs
-        moves.append((seconds, int(sim._solves[0]), bool(out[0][OUT_UNTOUCHED]), allocs))
-        return out
+    def recorded(model, consts, settings, state, *rest):
+        target = kernel.target_of(consts, settings, state[1], rest[-2])[0]
+        calls.append((state[0].copy(), state[1].copy(), target, state[2].copy()))
+        return step_env(model, consts, settings, state, *rest)
 
     env = gym.make("FrictionlessGrasp-v0", **kwargs)
     policy = RandomActions(env.action_space, seed=0)
     obs, _ = env.reset(seed=0)
-    Simulator._move = timed
+    kernel.step_env = recorded
     try:
         for _ in range(steps):
+            calls.append(env.unwrapped.simulator)
             obs, _, terminated, truncated, _ = env.step(policy.act(obs))
             if terminated or truncated:
                 obs, _ = env.reset()
     finally:
-        Simulator._move = move
+        kernel.step_env = step_env
+    sim = None
+    for call in calls:
+        if not isinstance(call, tuple):
+            sim = call
+            continue
+        allocs = rtsys.get_allocation_stats().alloc if count_allocations else 0
+        t0 = time.perf_counter()
+        out = sim.move_arrays(*call)
+        seconds = time.perf_counter() - t0
+        if count_allocations:
+            allocs = rtsys.get_allocation_stats().alloc - allocs
+        moves.append((seconds, sim.solves, bool(out[0][OUT_UNTOUCHED]), allocs))
     return moves
 
 
@@ -149,31 +158,38 @@ def _two_states(kwargs: dict, steps: int):
 
 
 def shell_times(kwargs: dict, steps: int, repeat: int = 5) -> dict[str, float]:
-    """us per ``env.step`` with the move fixed, contacts kept or changing, through the
-    wrappers of ``gymnasium.make`` and on the bare env (median of ``repeat`` runs)."""
+    """us per ``env.step`` with the compiled step fixed, contacts kept or changing (median
+    of ``repeat`` runs)."""
     env, first, second = _two_states(kwargs, 5000)
+    episode = env.unwrapped._episode
     action = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
-    move = Simulator._move_to
+    step_env = kernel.step_env
+    results = {}
+    for name, state in (("first", first), ("second", second)):
+        q, h, keys, rows = state_arrays(state)
+        out = np.zeros(OUT_SIZE)
+        out[:3], out[3:8] = q, h
+        results[name] = (kernel.OK, episode.obs.copy(), [], out, q, h, keys, rows,
+                         episode.an.copy())  # fmt: skip
     out = {}
     try:
-        for case, states in (("kept", (first, first)), ("changing", (first, second))):
+        for case, names in (("kept", ("first", "first")), ("changing", ("first", "second"))):
             turn = [0]
 
-            def fixed(sim, state, target, clip, states=states, turn=turn):
+            def fixed(*args, names=names, turn=turn):
                 turn[0] ^= 1
-                return states[turn[0]]
+                return results[names[turn[0]]]
 
-            Simulator._move_to = fixed
-            for layer, target in (("wrapped", env), ("bare", env.unwrapped)):
-                times = []
-                for _ in range(repeat):
-                    t0 = time.perf_counter()
-                    for _ in range(steps):
-                        target.step(action)
-                    times.append((time.perf_counter() - t0) / steps * 1e6)
-                out[f"{case}, {layer}"] = statistics.median(times)
+            kernel.step_env = fixed
+            times = []
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                for _ in range(steps):
+                    env.step(action)
+                times.append((time.perf_counter() - t0) / steps * 1e6)
+            out[case] = statistics.median(times)
     finally:
-        Simulator._move_to = move
+        kernel.step_env = step_env
     out["changing contacts"] = tuple(c.key for c in first.contacts) != tuple(
         c.key for c in second.contacts
     )
@@ -189,10 +205,9 @@ def run(quick: bool = False, out: Path = OUT / "step_parts.md", steps: int | Non
     for name, kwargs in CONFIGS.items():
         shell = shell_times(kwargs, shell_steps)
         changing = "" if shell["changing contacts"] else " (no second contact set found)"
-        shell_rows.append([
-            f"`{name}`", f"{shell['kept, bare']:.1f}", f"{shell['kept, wrapped']:.1f}",
-            f"{shell['changing, bare']:.1f}{changing}", f"{shell['changing, wrapped']:.1f}",
-        ])  # fmt: skip
+        shell_rows.append(
+            [f"`{name}`", f"{shell['kept']:.1f}", f"{shell['changing']:.1f}{changing}"]
+        )
         classes = classify(record_moves(kwargs, steps))
         allocations = _child_allocations(name, steps)
         for cls, res in classes.items():
@@ -202,28 +217,26 @@ def run(quick: bool = False, out: Path = OUT / "step_parts.md", steps: int | Non
                 f"`{name}`", cls, f"{100 * res['share']:.1f}", f"{100 * res['time_share']:.1f}",
                 f"{res['median_us']:.1f}", f"{allocations[cls]:.0f}",
             ])  # fmt: skip
-        print(f"{name}: shell {shell['kept, wrapped']:.1f} us/step (contacts kept, wrapped)")
+        print(f"{name}: shell {shell['kept']:.1f} us/step (contacts kept)")
     body = [
         "`benchmarks/step_parts.py`: each part timed unprofiled, one process, "
         f"{steps:,} seeded random-action steps per set-up (`RandomActions`, seed 0).",
         "",
         "## The env's shell",
         "",
-        "us per `env.step` with the simulator's move replaced by a fixed result (median of 5 "
-        f"runs of {shell_steps:,} steps): the action check, analysis, reward, observation and "
-        "info, and on the left the wrappers `gymnasium.make` adds (`RestoreOnError`, "
-        '`TimeLimit`, `OrderEnforcing`, `PassiveEnvChecker`). "Contacts kept": every step '
-        'returns the same state, whose analysis the step reuses; "contacts changing": two '
-        "states with different contacts in turn, each analysed afresh.",
+        "us per `env.step` with the compiled step replaced by a fixed result (median of 5 "
+        f"runs of {shell_steps:,} steps): the action check, the call, the state and the "
+        'info dict. "Contacts kept": every step returns the same state; "contacts changing": '
+        "two states with different contacts in turn, their contacts made afresh.",
         "",
         *table(SHELL_HEADER, shell_rows),
         "",
         "## The compiled move, by the work it does",
         "",
-        "Each move of the steps above, classed by what it took. Time per call from Python "
-        "(`Simulator._move`: the compiled call with its dispatch and the conversion of its "
-        "results); allocations: numba's allocation counter per move (`NUMBA_NRT_STATS=1`, "
-        "counted by a child process on the same steps).",
+        "Each move of the steps above, replayed and classed by what it took. Time per call "
+        "from Python (`Simulator.move_arrays`: the compiled call with its dispatch and the "
+        "conversion of its results); allocations: numba's allocation counter per move "
+        "(`NUMBA_NRT_STATS=1`, counted by a child process on the same steps).",
         "",
         *table(MOVE_HEADER, move_rows, align="llrrrr"),
     ]

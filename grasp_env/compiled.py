@@ -1,12 +1,11 @@
-"""Where the compiled code is cached: numba's on-disk cache of :mod:`grasp_env.solvers`
-and :mod:`grasp_env.sim`, whose functions call each other across modules and packages.
+"""Where the compiled code is cached: numba's on-disk cache of :mod:`grasp_env.solvers`,
+:mod:`grasp_env.sim` and :mod:`grasp_env.kernel`, whose functions call each other across
+modules and packages.
 
 The same source runs interpreted under ``NUMBA_DISABLE_JIT=1``, which is how to debug it.
 Compiled code is cached on disk (numba's ``cache=True``) where a cache folder can be written
 (:data:`CACHE`); elsewhere (a read-only install with no writable home or
-``NUMBA_CACHE_DIR``) it is compiled in memory in each process. A compiled function elsewhere
-that calls none of these (the observation's :func:`grasp_env.envs.observation.finish_observation`)
-is cached the same way, and numba checks it against its own file alone.
+``NUMBA_CACHE_DIR``) it is compiled in memory in each process.
 """
 
 from __future__ import annotations
@@ -17,7 +16,7 @@ from pathlib import Path
 from numba.core import caching
 
 #: The packages whose modules hold compiled functions.
-PACKAGES = ("solvers", "sim")
+PACKAGES = ("solvers", "sim", "kernel")
 
 
 def drop_stale_cache(sources: list[Path], cache: Path | None) -> bool:

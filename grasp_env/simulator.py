@@ -125,6 +125,14 @@ class Simulator:
     def model(self, model: Model) -> None:
         self._model = model
         self._packed = pack(model)  # the form in which it crosses into compiled code
+        self._compiled_model = model._replace(python_lp=False)
+
+    @property
+    def compiled_model(self) -> Model:
+        """:attr:`model` for compiled callers that catch the core's errors (the env's
+        kernel, :mod:`grasp_env.kernel`): an LP its basis enumeration cannot decide raises
+        ``SolverError`` there, and the caller moves again with :meth:`move_arrays`."""
+        return self._compiled_model
 
     def _build_model(self, size: float) -> Model:
         """The scene and this simulator's settings as the compiled core's arrays."""
@@ -167,6 +175,7 @@ class Simulator:
                 )
             ),
             reference_lp=self.lp_solver == "highs",
+            python_lp=True,
         )
 
     @property
@@ -239,6 +248,13 @@ class Simulator:
         target[3:] = _finite_floats(fingers, 2, "fingers")
         return self._move_to(state, target, True)
 
+    def move_to(self, state: State, target) -> State:
+        """:meth:`move_hand` to the hand configuration ``target`` (``(x_p, y_p, theta_p, q1,
+        q2)``, 5 finite numbers), its finger angles first clipped to the joint limits (a
+        ``"joint_limit"`` event)."""
+        own_state(state, self.scene)
+        return self._move_to(state, list(_finite_floats(target, 5, "target")), True)
+
     def _move_to(self, state: State, target: list, clip_fingers: bool) -> State:
         """:meth:`move_hand` to ``target``, five finite Python floats (the callers check
         them), its finger angles first clipped to the joint limits if ``clip_fingers``."""
@@ -248,11 +264,27 @@ class Simulator:
             (low1, low2), (high1, high2) = self._joint_low, self._joint_high
             target[3], target[4] = min(max(f1, low1), high1), min(max(f2, low2), high2)
             joint_limit = target[3] != f1 or target[4] != f2
+        known = self._keys_of(state)
+        out, log, keys, rows = self.move_arrays(
+            state.object_pose, state.hand, np.array(target), known
+        )
+        return self.state_from_move(state, out, log, keys, rows, joint_limit)
+
+    def _keys_of(self, state: State) -> np.ndarray:
+        """The contact keys of ``state`` as the compiled core takes them."""
         if state is self._last[0]:
-            known = self._last[1]  # a state this simulator made: its keys are at hand
-        else:
-            known = np.array([c.key for c in state.contacts], dtype=np.int64).reshape(-1, 4)
-        out, log, keys, rows = self._move(state.object_pose, state.hand, np.array(target), known)
+            return self._last[1]  # a state this simulator made: its keys are at hand
+        return np.array([c.key for c in state.contacts], dtype=np.int64).reshape(-1, 4)
+
+    def state_from_move(
+        self, state: State, out: np.ndarray, log: list, keys: np.ndarray, rows: np.ndarray,
+        joint_limit: bool = False,
+    ) -> State:  # fmt: skip
+        """The :class:`State` a compiled move from ``state`` ended in:
+        :func:`grasp_env.sim.move.move_hand`'s ``out``, event ``log``, contact ``keys`` and
+        ``rows``, with a ``"joint_limit"`` event first where the target's fingers were
+        clipped. Where the move left the object untouched, the state keeps ``state``'s
+        contacts."""
         s_reached, s_end, blocked, jammed, untouched = out[move.OUT_S :].tolist()
         events = [Event("joint_limit", 1.0)] if joint_limit else []
         if log:
@@ -263,16 +295,20 @@ class Simulator:
             events.append(Event("hand_blocked", s_end))
         q, h = out[move.OUT_Q], out[move.OUT_H]
         if untouched:  # the object and its contacts are as they were
+            known = self._keys_of(state)
             new = self._new_state(q, h, state.contacts, known, events, False, blocked)
             if state._arrays is not None:
                 keep_contact_arrays(new, *state._arrays)
             return new
-        return self._state(q, h, keys, rows, events, bool(jammed), blocked)
+        return self.make_state(q, h, keys, rows, events, bool(jammed), blocked)
 
-    def _move(self, q0: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray):
-        """The compiled move (:func:`grasp_env.sim.move.move_hand`), retried once on the
-        reference LP path with a quarter of the increment and fall step if a solve fails
-        (nothing of the failed attempt is kept); a second failure is reported."""
+    def move_arrays(self, q0: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray):
+        """A straight-line move from object pose ``q0`` and hand ``h0`` (touching the
+        contacts ``known``, rows of keys) to the hand ``h1``, as the compiled core's arrays:
+        :func:`grasp_env.sim.move.move_hand`'s ``(out, log, keys, rows)``
+        (:meth:`state_from_move` makes the state). Retried once on the reference LP path
+        with a quarter of the increment and fall step if a solve fails (nothing of the failed
+        attempt is kept); a second failure is reported."""
         self._solves[0] = 0
         try:
             return _compiled(
@@ -300,10 +336,16 @@ class Simulator:
 
     # ------------------------------------------------------------------ output
     def _make_state(self, q: np.ndarray, h: np.ndarray, events: list[Event]) -> State:
-        return self._state(q, h, *move.at_rest(self.model, q, h), events)
+        return self.make_state(q, h, *move.at_rest(self.model, q, h), events)
 
-    def _state(self, q, h, keys, rows, events, jammed=False, blocked=False) -> State:
-        """A :class:`State` from the compiled :func:`grasp_env.sim.move.at_rest` output."""
+    def make_state(
+        self, q: np.ndarray, h: np.ndarray, keys: np.ndarray, rows: np.ndarray,
+        events: list | tuple = (), jammed: bool = False, blocked: bool = False,
+    ) -> State:  # fmt: skip
+        """The :class:`State` of object pose ``q`` and hand ``h`` with the contacts the
+        compiled core gives (:func:`grasp_env.sim.move.at_rest`: ``keys`` and ``rows`` of
+        point, normal, gap and force), ``events`` and the flags of the move that led
+        there."""
         points, normals = rows[:, move.ROW_POINT], rows[:, move.ROW_NORMAL]
         contacts = contacts_from_arrays(
             keys.tolist(), points, normals, rows[:, move.ROW_FORCE].tolist(),

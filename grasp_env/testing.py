@@ -11,7 +11,8 @@ tests and the soak (``benchmarks/soak.py``) check every state they make with :fu
   contact_tol`` and the normal of an edge through its point; every touching vertex-body pair
   is listed;
 * the object's equilibrium residual ``|sum c_i n_i + m g| (+ moment / size)`` below
-  :data:`EQ_RTOL` times its weight (plus the rounding of its terms), and no admissible
+  :data:`EQ_RTOL` times its weight (plus the rounding of its terms; contacts dependent to
+  tolerance exert no force along their free directions, :func:`free_rows`), and no admissible
   descent: gravity lies in the cone of the contact wrenches, to :data:`EQ_RTOL` times the
   weight, once contacts dependent to tolerance are made exactly dependent
   (:func:`free_rows`, docs/conventions.md, *Mechanics notes*).
@@ -331,9 +332,11 @@ def _check_equilibrium(out: Check, scene: Any, com, P, N, C, descent: bool, tol:
     W = scene.object_weight
     size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
     moments = np.array([cross(pi - com, ni) for pi, ni in zip(P, N, strict=True)])
-    force = C @ N + np.array([0.0, -W])
-    moment = C @ moments if len(C) else 0.0
-    out.residual = math.hypot(force[0], force[1], moment / size) / W
+    # the wrenches, with the directions free to tolerance taken out: dependent contacts
+    # exert no force along them, and their forces balance the object without it
+    V = free_rows(np.column_stack([N, moments / size]), tol / size) if len(C) else np.zeros((0, 3))
+    residual = C @ V - np.array([0.0, W, 0.0])
+    out.residual = math.hypot(*residual) / W
     terms = float(C @ (1.0 + np.abs(moments) / size)) / W if len(C) else 0.0
     if not out.residual <= EQ_RTOL + TERM_ROUNDING * terms:
         bad.append(f"equilibrium: residual {out.residual:.3e} x weight")
@@ -342,7 +345,6 @@ def _check_equilibrium(out: Check, scene: Any, com, P, N, C, descent: bool, tol:
     if not len(C):
         bad.append("equilibrium: no contacts (nothing holds the object)")
         return
-    V = free_rows(np.column_stack([N, moments / size]), tol / size)
     lam, dist = nnls(V.T, np.array([0.0, 1.0, 0.0]))
     out.descent = -float(dist)
     allowed = EQ_RTOL + TERM_ROUNDING * float(lam @ np.linalg.norm(V, axis=1))

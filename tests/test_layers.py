@@ -16,6 +16,7 @@ LAYERS = [
     ("core",),
     ("solvers",),
     ("sim",),
+    ("kernel",),
     ("mechanics",),
     ("simulator", "testing"),
     ("planning",),

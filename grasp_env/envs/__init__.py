@@ -10,13 +10,22 @@
   fitted to the object, so that a grasp is within reach from the start), with the
   observation's ``hand_features`` (fingertips, hand-object distances, contact positions).
 
-All use the same class with the env's default reward weights; ``gymnasium.make`` keyword
-arguments override the registered ones. :func:`register_envs` registers them with a string
-entry point, so registering imports neither the environment module nor pygame. Importing this
-package (which ``import grasp_env`` does) calls it: ``gymnasium.make("grasp_env:
-FrictionlessGrasp-v0")`` and spawned vector-env workers rely on that. ``gymnasium.make``
-puts :class:`RestoreOnError <grasp_env.envs.restore.RestoreOnError>` outside its
-standard wrappers, so that a refused ``reset`` or ``step`` leaves them as they were.
+All use the same class with the env's default reward weights and a time limit of
+:data:`MAX_EPISODE_STEPS` steps (``time_limit``, the env's own); ``gymnasium.make`` keyword
+arguments override the registered ones. :func:`register_envs` registers them with string
+entry points, so registering imports neither the environment module nor pygame. Importing
+this package (which ``import grasp_env`` does) calls it: ``gymnasium.make("grasp_env:
+FrictionlessGrasp-v0")`` and spawned vector-env workers rely on that.
+
+``gymnasium.make`` returns the env itself, with no wrapper: it enforces its own call order
+(``step`` and ``render`` before ``reset`` raise), truncates its own episodes and refuses bad
+input without changing anything, so nothing outside it needs restoring after a refused call
+(gymnasium's ``TimeLimit`` restarts its count when a reset is refused, and its passive
+checker breaks every later step after a refused first one; ``disable_env_checker=False``
+and ``max_episode_steps`` given to ``gymnasium.make`` add them back, on the caller's terms).
+``gymnasium.make_vec(env_id, num_envs=N)`` makes the batched env of the same id
+(:class:`grasp_env.envs.vector.FrictionlessGraspVectorEnv`; ``vectorization_mode="sync"``
+or ``"async"`` gives gymnasium's vector envs of single envs instead).
 """
 
 from __future__ import annotations
@@ -26,6 +35,7 @@ from types import MappingProxyType
 #: Id of the paper's set-up, entry point and default episode length of every id.
 ENV_ID = "FrictionlessGrasp-v0"
 ENTRY_POINT = "grasp_env.envs.frictionless_grasp:FrictionlessGraspEnv"
+VECTOR_ENTRY_POINT = "grasp_env.envs.vector:FrictionlessGraspVectorEnv"
 MAX_EPISODE_STEPS = 200
 #: Id of the randomized-shapes set-up with palm control.
 RANDOM_SHAPES_ENV_ID = "FrictionlessGraspRandomShapes-v0"
@@ -34,9 +44,15 @@ LIFT_ENV_ID = "FrictionlessGraspLift-v0"
 #: The registered ids and their ``gymnasium.make`` keyword arguments (read-only).
 ENV_KWARGS = MappingProxyType(
     {
-        ENV_ID: MappingProxyType({}),
+        ENV_ID: MappingProxyType({"time_limit": MAX_EPISODE_STEPS}),
         RANDOM_SHAPES_ENV_ID: MappingProxyType(
-            {"scene": "fig13", "shape_randomizer": True, "palm_control": True, "start": "scene"}
+            {
+                "scene": "fig13",
+                "shape_randomizer": True,
+                "palm_control": True,
+                "start": "scene",
+                "time_limit": MAX_EPISODE_STEPS,
+            }
         ),
         LIFT_ENV_ID: MappingProxyType(
             {
@@ -45,6 +61,7 @@ ENV_KWARGS = MappingProxyType(
                 "palm_control": True,
                 "start": "placement",
                 "hand_features": True,
+                "time_limit": MAX_EPISODE_STEPS,
             }
         ),
     }
@@ -59,23 +76,21 @@ ENV_KWARGS = MappingProxyType(
 #: of a grasp that is soon lost. A held grasp also earns up to 0.1 a step of grip term: the
 #: scripted planner's fig13 episode returns about 24.5, random actions about 0.
 REWARD_THRESHOLD = 10.0
-#: The wrapper ``gymnasium.make`` adds outside ``PassiveEnvChecker``, ``OrderEnforcing`` and
-#: ``TimeLimit``.
-WRAPPER_ENTRY_POINT = "grasp_env.envs.restore:RestoreOnError"
 
 
 def register_envs() -> None:
     """Register every id of :data:`ENV_KWARGS` with gymnasium (idempotent)."""
-    from gymnasium.envs.registration import WrapperSpec, register, registry
+    from gymnasium.envs.registration import register, registry
 
     for env_id, kwargs in ENV_KWARGS.items():
         if env_id not in registry:
             register(
                 id=env_id,
                 entry_point=ENTRY_POINT,
-                max_episode_steps=MAX_EPISODE_STEPS,
+                vector_entry_point=VECTOR_ENTRY_POINT,
                 reward_threshold=REWARD_THRESHOLD,
-                additional_wrappers=(WrapperSpec("RestoreOnError", WRAPPER_ENTRY_POINT, {}),),
+                order_enforce=False,
+                disable_env_checker=True,
                 kwargs=dict(kwargs),
             )
 
@@ -90,6 +105,6 @@ __all__ = [
     "MAX_EPISODE_STEPS",
     "RANDOM_SHAPES_ENV_ID",
     "REWARD_THRESHOLD",
-    "WRAPPER_ENTRY_POINT",
+    "VECTOR_ENTRY_POINT",
     "register_envs",
 ]

@@ -11,8 +11,8 @@ import numpy as np
 from grasp_env.arguments import number, short
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import LENGTH_RANGE, Scene
-from grasp_env.envs.observation import PALM_THETA_MAX, PALM_X_RANGE, PALM_Y_MAX
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES
+from grasp_env.kernel.observation import PALM_THETA_MAX, PALM_X_RANGE, PALM_Y_MAX
 
 #: Largest aspect ratio of the shape randomizer: a 1:100 shape is already a thin plate.
 MAX_ASPECT = 100.0

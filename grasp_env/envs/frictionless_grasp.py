@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -31,25 +30,13 @@ from grasp_env.envs.checks import (
     shape_ranges,
     spec_name,
 )
-from grasp_env.envs.observation import (
-    BODIES,
-    BODY_INDEX,
-    GRIP_MAX,
-    PALM_THETA_MAX,
-    PALM_X_RANGE,
-    PALM_Y_MAX,
-    REACH,
-    contact_positions,
-    finish_observation,
-    in_palm_frame,
-    observation_bounds,
-)
+from grasp_env.envs.episode import Episode, env_settings, episode_constants
 from grasp_env.envs.shapes import hand_setup, random_shape_scene
 from grasp_env.errors import ComputationError
-from grasp_env.mechanics.closure import grip_objective, is_form_closure
+from grasp_env.kernel import step as kernel
+from grasp_env.kernel.observation import observation_bounds
 from grasp_env.planning import centred_placement, first_placement
 from grasp_env.render import Renderer
-from grasp_env.sim.proximity import hand_features
 from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator, own_state
 
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
@@ -63,27 +50,13 @@ _PLACEMENTS = {"preliftoff": centred_placement, "random": centred_placement,
                "placement": lambda sim: first_placement(sim)[0]}  # fmt: skip
 _OPTION_KEYS = ("scene", "palm", "fingers")
 #: The reward's terms, in the order of ``info["reward_<term>"]``.
-REWARD_TERMS = ("form_closure", "hold", "grip", "lift", "drop", "ctrl")
+REWARD_TERMS = kernel.REWARD_TERMS
 #: Largest reward weight: a step's reward stays far from the float range.
 MAX_REWARD_WEIGHT = 1e6
 #: Largest ``max_vertices`` (the observation has 3 entries per vertex).
 MAX_VERTICES = 1000
 #: Largest ``render_width`` and ``render_height``, in pixels.
 MAX_RENDER_SIZE = 16384
-
-
-@dataclass(slots=True)
-class Analysis:
-    """What the env derives from a state for its observation, reward and info."""
-
-    on_support: bool
-    form_closure: bool
-    grip: float  #: y*, or NaN where it is not computed
-    success: bool  #: form closure off the support
-    in_palm_frame: tuple[float, float, float]  #: the object's pose in the palm frame
-    out_of_reach: bool
-    #: the observation's contact block, filled by the first observation of these contacts
-    contact_obs: list[float] | None = None
 
 
 class FrictionlessGraspEnv(gym.Env):
@@ -221,8 +194,15 @@ class FrictionlessGraspEnv(gym.Env):
     actions, a bad scene, a hand outside the workspace or joint limits, or overlapping the
     object or the support) or ``seed`` raises ``ValueError`` naming it. A refused reset
     changes nothing: the episode in progress, if any, continues as if the call had not
-    happened (same state, same random generator), and the wrappers that ``gymnasium.make``
-    adds are left as they were (:class:`~grasp_env.envs.restore.RestoreOnError`).
+    happened (same state, same random generator, same step count).
+
+    With ``shape_pool=K`` the random shapes come from a pool of ``K``, each drawn as without
+    a pool from a generator seeded by its place in the pool alone, with its start state, and
+    made once, the first time a reset draws it: a reset draws a place (uniformly, from the
+    env's generator) instead of a new shape. An episode's shape is distributed as without a
+    pool; across episodes, shapes recur. Resets cost about a step once the pool is made (the
+    ``"placement"`` start takes the planner about 13 ms a shape). Training uses it; the
+    evaluation draws fresh shapes.
 
     ## Episode End
 
@@ -230,7 +210,9 @@ class FrictionlessGraspEnv(gym.Env):
       this episode, or its centre leaves the reach box ``|x|, |y| <= 2 w`` about the palm, in
       the palm frame; ``info["dropped"]``), or a failure of the simulator or of the
       analysis' LPs (``info["sim_error"]`` holds the message; the state is left unchanged).
-    * Truncation: only by the ``TimeLimit`` wrapper, ``max_episode_steps=200`` by default.
+    * Truncation: after ``time_limit`` steps (200 for the registered ids), the env's own
+      count, which a refused call leaves as it was. (``gymnasium.make(..., max_episode_steps=
+      N)`` adds gymnasium's ``TimeLimit`` on top, whose count restarts at a refused reset.)
 
     ``info`` holds, at reset and every step: ``object_pose``, ``palm_pose``,
     ``finger_angles`` (np arrays), ``contacts`` (list of dicts: body, kind, point, normal,
@@ -270,6 +252,10 @@ class FrictionlessGraspEnv(gym.Env):
     * ``max_vertices``: observation padding of the object's vertices (12; at most 1000).
     * ``always_compute_grip``: also compute ``y*`` outside form closure (False: skipped).
     * ``hand_features``: append the hand features to the observation (False).
+    * ``shape_pool``: draw random shapes from a pool of this many (None: a new shape at every
+      reset); see Starting State.
+    * ``time_limit``: steps after which an episode is truncated (None: never; the registered
+      ids: 200).
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
       ``render_height`` (640, 480; 16 to 16384 pixels).
 
@@ -294,12 +280,15 @@ class FrictionlessGraspEnv(gym.Env):
     * v0: initial version. ``info["grip_force"]`` is a plain float, ``inf`` outside form
       closure; the spec has ``reward_threshold=10``; bundled scene names always mean the
       bundled scenes. Added since, with defaults that leave the env as it was: the
-      ``"placement"`` start, ``hand_features`` and ``reward_hold_weight``
-      (``info["reward_hold"]``).
+      ``"placement"`` start, ``hand_features``, ``reward_hold_weight``
+      (``info["reward_hold"]``) and ``shape_pool``. The time limit of 200 steps is the env's
+      own (``time_limit``) since the batched env (``gymnasium.make_vec``) came: episodes end
+      as before, and ``gymnasium.make`` returns the env without wrappers.
 
-    Registered ids (``grasp_env.envs.ENV_KWARGS``), all with ``max_episode_steps=200`` and
+    Registered ids (``grasp_env.envs.ENV_KWARGS``), all with ``time_limit=200`` and
     ``reward_threshold=10`` with the default reward weights; keyword arguments of
-    ``gymnasium.make`` override the registered ones:
+    ``gymnasium.make`` override the registered ones; ``gymnasium.make_vec(env_id,
+    num_envs=N)`` makes the batched env of an id (:mod:`grasp_env.envs.vector`):
 
     * ``FrictionlessGrasp-v0``: the defaults, the paper's set-up (scene ``fig13``, palm fixed,
       two finger actions, ``start="scene"``);
@@ -332,10 +321,13 @@ class FrictionlessGraspEnv(gym.Env):
         max_vertices: int = 12,
         always_compute_grip: bool = False,
         hand_features: bool = False,
+        shape_pool: int | None = None,
+        time_limit: int | None = None,
         render_mode: str | None = None,
         render_width: int = 640,
         render_height: int = 480,
     ) -> None:
+        self.time_limit = None if time_limit is None else integer(time_limit, "time_limit", 1)
         self.palm_control = flag(palm_control, "palm_control")
         self.always_compute_grip = flag(always_compute_grip, "always_compute_grip")
         self.hand_features = flag(hand_features, "hand_features")
@@ -369,22 +361,29 @@ class FrictionlessGraspEnv(gym.Env):
         self.scenes = [self._load(spec, "scene") for spec in specs]
         self.shape_ranges = shape_ranges(shape_randomizer, self.max_vertices)
         self._shape_args = (self.shape_ranges, self._shape_problem)
+        self.shape_pool = None if shape_pool is None else integer(shape_pool, "shape_pool", 1)
+        if self.shape_pool is not None and self.shape_ranges is None:
+            raise ValueError(f"shape_pool={shape_pool!r} needs a shape_randomizer")
         if self.shape_ranges is not None:
             for base in self.scenes:  # fail now, not at a reset, if no shape fits a hand
                 random_shape_scene(np.random.default_rng(0), base, *self._shape_args)
 
-        self._sims: dict[int, Simulator] = {}
-        self._placement_cache: dict[int, State] = {}
+        #: Simulators and start states of the bundled scenes (by index) and of the shape
+        #: pool's entries (by ``(index, entry)``), made once.
+        self._sims: dict[Any, Simulator] = {}
+        self._starts: dict[Any, tuple[State, str | None]] = {}
         self.action_space = spaces.Box(-1.0, 1.0, (5 if self.palm_control else 2,), np.float32)
         low, high = observation_bounds(self.max_vertices, self.hand_features)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._obs_low, self._obs_high = low, high
+        self._settings = env_settings(
+            palm_control=self.palm_control, always_compute_grip=self.always_compute_grip,
+            hand_features=self.hand_features, gamma=self.gamma, time_limit=self.time_limit,
+            max_vertices=self.max_vertices, reward_weights=self.reward_weights,
+        )  # fmt: skip
 
         self._renderer = None
-        self._sim: Simulator | None = None
-        self._state: State | None = None
-        self._analysis: Analysis | None = None
-        self._steps = 0
+        self._episode: Episode | None = None
 
     # ------------------------------------------------------------------ public accessors
     @property
@@ -395,21 +394,21 @@ class FrictionlessGraspEnv(gym.Env):
         last move's events (:class:`grasp_env.State`). Read-only: the env moves on only through
         :meth:`reset` and :meth:`step`.
         """
-        return self._state
+        return None if self._episode is None else self._episode.state
 
     @property
     def simulator(self) -> Simulator | None:
         """The :class:`grasp_env.Simulator` of the current episode (None before the first
         :meth:`reset`). A model for planners: its ``move_hand`` and ``settle`` return new
         states and leave the env as it is."""
-        return self._sim
+        return None if self._episode is None else self._episode.sim
 
     @property
     def scene(self) -> Scene | None:
         """The :class:`grasp_env.Scene` of the current episode (None before the first
         :meth:`reset`): one of :attr:`scenes`, the ``options["scene"]`` of the reset, or the
         random shape drawn with ``shape_randomizer``."""
-        return None if self._state is None else self._state.scene
+        return None if self._episode is None else self._episode.state.scene
 
     # ------------------------------------------------------------------ validation
     def _load(self, spec: Any, name: str) -> Scene:
@@ -527,26 +526,22 @@ class FrictionlessGraspEnv(gym.Env):
         except gym.error.Error:
             raise ValueError(f"seed must be None or an int >= 0, got {short(seed)}") from None
         sim, state, error = self._start(rng, opts)
-        analysis = self._analyse(state)
+        consts = episode_constants(
+            state.scene, state, self.max_finger_step, self.max_palm_step, sim.model.rho
+        )
+        episode = Episode(sim, state, consts, self._settings, len(self._obs_low))
 
         super().reset(seed=seed)
         self.np_random.bit_generator.state = rng.bit_generator.state  # the draws made above
-        self._sim, self._state, self._steps = sim, state, 0
-        self._object_obs(state.scene)
-        self._palm_box = self._palm_limits(state.scene)
-        self._analysis = analysis
-        self._y0 = float(state.object_pose[1])
-        self._left_support = not self._analysis.on_support
-        self._success_rewarded = False
-        self._phi = self._potential(state)
-        info = self._info(state, dropped=False, reward_info=dict.fromkeys(_REWARD_KEYS, 0.0))
+        self._episode = episode
+        info = self._info(dropped=False, step_info=None)
         if error is not None:
             info["sim_error"] = error
         if self._renderer is not None:
             self._renderer.reset_view()
         if self.render_mode == "human":
             self.render()
-        return self._get_obs(), info
+        return self._observation(), info
 
     def _start(
         self, rng: np.random.Generator, opts: dict[str, Any]
@@ -559,38 +554,55 @@ class FrictionlessGraspEnv(gym.Env):
             sim, key = Simulator(scene, contact_tol=self.contact_tol), None
         else:
             idx = int(rng.integers(len(self.scenes))) if len(self.scenes) > 1 else 0
-            if self.shape_ranges is not None:
+            key = idx
+            if self.shape_ranges is not None and self.shape_pool is None:
                 scene = random_shape_scene(rng, self.scenes[idx], *self._shape_args)
                 sim, key = Simulator(scene, contact_tol=self.contact_tol), None
-            else:
-                scene, key = self.scenes[idx], idx
-                if idx not in self._sims:
-                    self._sims[idx] = Simulator(scene, contact_tol=self.contact_tol)
-                sim = self._sims[idx]
+            elif self.shape_ranges is not None:
+                key = (idx, int(rng.integers(self.shape_pool)))
+            if key is not None and key not in self._sims:
+                self._sims[key] = Simulator(self._scene_of(key), contact_tol=self.contact_tol)
+            sim = self._sims[key] if key is not None else sim
+            scene = sim.scene
         if "palm" in opts or "fingers" in opts:
             return sim, sim.settle(scene.object.start_pose, self._check_hand(scene, opts)), None
-        if self.start == "scene":
-            return sim, sim.reset(), None
-        state, error = self._placement(sim, key)
+        state, error = self._first_state(sim, key)
         if self.start == "random":
             state = self._perturb(sim, state, rng)
         return sim, state, error
 
-    def _placement(self, sim: Simulator, key: int | None) -> tuple[State, str | None]:
-        """The start's pre-liftoff placement (cached per bundled scene), or the pre-liftoff
-        hand set-up with the error where the simulator failed on the way there."""
-        if key is not None and key in self._placement_cache:
-            return self._placement_cache[key], None
+    def _scene_of(self, key: Any) -> Scene:
+        """The scene of a bundled scene's index, or of the shape pool's entry ``(index,
+        entry)``: a random shape drawn from a generator seeded by the entry alone."""
+        if not isinstance(key, tuple):
+            return self.scenes[key]
+        idx, entry = key
+        rng = np.random.default_rng([idx, entry])
+        return random_shape_scene(rng, self.scenes[idx], *self._shape_args)
+
+    def _first_state(self, sim: Simulator, key: Any) -> tuple[State, str | None]:
+        """The start's state before any perturbation (made once per bundled scene or pool
+        entry), with the error where the simulator failed on the way to a pre-liftoff
+        placement."""
+        if key is not None and key in self._starts:
+            return self._starts[key]
+        if self.start == "scene":
+            found = sim.reset(), None
+        else:
+            found = self._placement(sim)
+        if key is not None and found[1] is None:
+            self._starts[key] = found
+        return found
+
+    def _placement(self, sim: Simulator) -> tuple[State, str | None]:
+        """The start's pre-liftoff placement, or the pre-liftoff hand set-up with the error
+        where the simulator failed on the way there."""
         scene = sim.scene
-        error = None
         try:
-            state = _PLACEMENTS[self.start](sim)
+            return _PLACEMENTS[self.start](sim), None
         except ComputationError as exc:
             state = sim.settle(scene.object.start_pose, hand_setup(scene))
-            error = f"pre-liftoff placement stopped: {exc}"
-        if key is not None and error is None:
-            self._placement_cache[key] = state
-        return state, error
+            return state, f"pre-liftoff placement stopped: {exc}"
 
     def _perturb(self, sim: Simulator, state: State, rng: np.random.Generator) -> State:
         scene = sim.scene
@@ -611,30 +623,19 @@ class FrictionlessGraspEnv(gym.Env):
     # ------------------------------------------------------------------ step
     def step(self, action: Any):
         a = self._check_action(action)
-        if self._state is None:
+        if self._episode is None:
             raise RuntimeError("call reset() before step()")
-        state = self._state
-        self._steps += 1
-        try:
-            new = self._simulate(state, a)  # finite, or a SimulationError
-            same = self._analysis if _same_contacts(new, state) else None
-            analysis = self._analyse(new, same)
-        except ComputationError as exc:
-            reward_info = dict.fromkeys(_REWARD_KEYS, 0.0)
-            reward_info["reward_lift"] = -self._phi  # Phi = 0 at a terminal state
-            self._phi = 0.0
-            info = self._info(state, dropped=False, reward_info=reward_info)
-            info["sim_error"] = f"{type(exc).__name__}: {exc}"
-            return self._get_obs(), float(reward_info["reward_lift"]), True, False, info
-
-        dropped = (analysis.on_support and self._left_support) or analysis.out_of_reach
-        self._left_support |= not analysis.on_support
-        self._state, self._analysis = new, analysis
-        reward, reward_info = self._get_rew(new, a, dropped)
-        info = self._info(new, dropped=dropped, reward_info=reward_info)
+        obs, info, error = self._episode.advance(
+            np.array(a), self._settings, self._obs_low, self._obs_high
+        )
         if self.render_mode == "human":
             self.render()
-        return self._get_obs(), reward, bool(dropped), False, info
+        reward = float(info[kernel.I_REWARD])
+        terminated, truncated = bool(info[kernel.I_TERMINATED]), bool(info[kernel.I_TRUNCATED])
+        out = self._info(info[kernel.I_DROPPED], info)
+        if error is not None:
+            out["sim_error"] = error
+        return obs, reward, terminated, truncated, out
 
     def simulate_action(self, state: State, action: Any) -> State:
         """The state ``action`` leads to from ``state``, without changing the env.
@@ -663,157 +664,42 @@ class FrictionlessGraspEnv(gym.Env):
                 ``info["sim_error"]``.
         """
         a = self._check_action(action)
-        if self._sim is None:
+        if self._episode is None:
             raise RuntimeError("call reset() before simulate_action()")
-        own_state(state, self._sim.scene)
+        sim = self._episode.sim
+        own_state(state, sim.scene)
         real_vector(state.hand, "state.hand", 5)  # the move's target is made from it
-        return self._simulate(state, a)
-
-    def _simulate(self, state: State, a: list[float]) -> State:
-        """:meth:`simulate_action` of a checked action (floats in [-1, 1])."""
-        target = state.hand.tolist()
-        step = self.max_finger_step
-        target[3] += step * a[0]  # both fingers close for a > 0
-        target[4] -= step * a[1]
-        if self.palm_control:
-            (x_lo, y_lo, th_lo), (x_hi, y_hi, th_hi), (dx, dy, dth) = self._palm_box
-            x, y, th = target[:3]
-            target[0] = min(max(x + dx * a[2], x_lo), x_hi)
-            target[1] = min(max(y + dy * a[3], y_lo), y_hi)
-            target[2] = min(max(th + dth * a[4], th_lo), th_hi)
-        return self._sim._move_to(state, target, True)  # the target is checked here
-
-    def _palm_limits(self, scene: Scene) -> tuple[list, list, list]:
-        """The palm's workspace (lower and upper bounds of ``(x, y, theta)``) and its largest
-        step per action unit, for ``scene``."""
-        w, x0 = scene.palm.width, scene.object.start_pose[0]
-        low = [x0 - PALM_X_RANGE * w, 0.0, -PALM_THETA_MAX]
-        high = [x0 + PALM_X_RANGE * w, PALM_Y_MAX * w, PALM_THETA_MAX]
-        step = [float(m) * u for m, u in zip(self.max_palm_step, (w, w, 1.0), strict=True)]
-        return low, high, step
-
-    def _analyse(self, state: State, same_contacts: Analysis | None = None) -> Analysis:
-        """Form closure (always), y* (only when needed) and where the object is.
-
-        ``same_contacts``: the analysis of a state with the same object pose and contacts
-        (:func:`_same_contacts`), whose contact-dependent fields are kept instead of
-        computed again.
-        """
-        p_P = in_palm_frame(state)
-        out_of_reach = max(abs(p_P[0]), abs(p_P[1])) > REACH * state.scene.palm.width
-        if same_contacts is not None:
-            an = same_contacts
-            return Analysis(
-                an.on_support, an.form_closure, an.grip, an.success, p_P, out_of_reach,
-                an.contact_obs,
-            )  # fmt: skip
-        on_support = state.on_support
-        # Planar form closure needs at least four frictionless contacts: skip the LP below.
-        closure = len(state.contacts) >= 4 and is_form_closure(state)
-        grip = grip_objective(state) if closure or self.always_compute_grip else math.nan
-        return Analysis(on_support, closure, grip, closure and not on_support, p_P, out_of_reach)
-
-    def _potential(self, state: State) -> float:
-        height = (state.object_pose.item(1) - self._y0) / state.scene.palm.width
-        return self.reward_weights["lift"] * height
-
-    def _get_rew(self, state: State, a: list[float], dropped: bool) -> tuple[float, dict]:
-        weights, an = self.reward_weights, self._analysis
-        bonus = 0.0
-        if an.success and not self._success_rewarded:
-            bonus, self._success_rewarded = weights["form_closure"], True
-        hold = weights["hold"] if an.success else 0.0
-        grip = 0.0
-        if an.success and math.isfinite(an.grip):
-            y = min(an.grip / state.scene.object_weight, GRIP_MAX)
-            grip = weights["grip"] * (1.0 - y / GRIP_MAX)
-        phi = 0.0 if dropped else self._potential(state)
-        lift = self.gamma * phi - self._phi
-        self._phi = phi
-        drop = -weights["drop"] if dropped else 0.0
-        effort = 0.0  # sum of squares, in index order (as numpy sums so few terms)
-        for x in a:
-            effort += x * x
-        ctrl = -weights["ctrl"] * effort
-        terms = {
-            "reward_form_closure": float(bonus),
-            "reward_hold": float(hold),
-            "reward_grip": float(grip),
-            "reward_lift": float(lift),
-            "reward_drop": float(drop),
-            "reward_ctrl": float(ctrl),
-        }  # the keys of _REWARD_KEYS, in its order: the reward adds them in this order
-        return sum(terms.values()), terms
+        return self._episode.simulate(state, np.array(a), self._settings)
 
     # ------------------------------------------------------------------ observation / info
-    def _get_obs(self) -> np.ndarray:
-        state, an = self._state, self._analysis
-        scene = state.scene
-        w, weight = scene.palm.width, scene.object_weight
-        obs = self._obs_buffer  # the object's padded vertices and mask are set at reset
-        if an.contact_obs is None:  # new contacts (else the buffer holds them already)
-            grip = an.grip / weight if an.form_closure else GRIP_MAX
-            contacts = [0.0] * (2 * len(BODIES))
-            for c in state.contacts:
-                k = BODY_INDEX[c.body]
-                contacts[k] += 1.0
-                contacts[k + 1] += c.force / weight
-            contacts += (
-                float(an.form_closure),
-                grip if math.isfinite(grip) else GRIP_MAX,
-                (float(state.object_pose[1]) - self._y0) / w,
-            )
-            if self.hand_features:
-                contacts += contact_positions(state)
-            an.contact_obs = contacts
-        if self._obs_contacts is not an.contact_obs:
-            obs[self._contacts_at : self._contacts_at + len(an.contact_obs)] = an.contact_obs
-        self._obs_contacts = an.contact_obs
-        if self.hand_features:
-            model = self._sim.model
-            features = hand_features(
-                model.points, model.body, model.n_object, model.n_vertices, model.half,
-                state.object_pose, state.hand,
-            )  # fmt: skip
-            features /= w
-            obs[self._hand_at :] = features
-        x0 = scene.object.start_pose[0]
-        return finish_observation(
-            obs, state.hand, state.object_pose, an.in_palm_frame, x0, w, self._obs_low,
-            self._obs_high,
-        )  # fmt: skip
+    def _observation(self) -> np.ndarray:
+        return self._episode.observation(self._settings, self._obs_low, self._obs_high)
 
-    def _object_obs(self, scene: Scene) -> None:
-        """The observation's per-episode part: the object's vertices (body frame, in palm
-        widths) padded to ``max_vertices``, and their mask."""
-        n = self.max_vertices
-        v = scene.object.vertices_B / scene.palm.width
-        obs = self._obs_buffer = np.zeros(len(self._obs_low), dtype=np.float32)
-        self._obs_contacts = None  # the contact part the buffer holds (_get_obs)
-        obs[13 : 13 + 2 * len(v)] = v.ravel()
-        obs[13 + 2 * n : 13 + 2 * n + len(v)] = 1.0
-        self._contacts_at = 13 + 3 * n
-        self._hand_at = 27 + 3 * n
-
-    def _info(self, state: State, dropped: bool, reward_info: dict) -> dict[str, Any]:
-        an = self._analysis
+    def _info(self, dropped: bool, step_info: np.ndarray | None) -> dict[str, Any]:
+        """The info dict of the current state; ``step_info`` the kernel's of the step that
+        led there (None at a reset: the reward terms are zero)."""
+        episode = self._episode
+        state, an = episode.state, episode.an
         hand = state.hand.copy()
+        closure = bool(an[kernel.A_CLOSURE])
+        grip = float(an[kernel.A_GRIP])
         info = {
             "object_pose": state.object_pose.copy(),
             "palm_pose": hand[:3],
             "finger_angles": hand[3:],
             "contacts": [c.as_dict() for c in state.contacts],
-            "form_closure": bool(an.form_closure),
-            "grip_force": float(an.grip) if an.form_closure else math.inf,
+            "form_closure": closure,
+            "grip_force": grip if closure else math.inf,
             "jammed": bool(state.jammed),
             "hand_blocked": bool(state.hand_blocked),
             "dropped": bool(dropped),
             "events": [e.kind for e in state.events],
-            "is_success": bool(an.success),
-            **reward_info,
+            "is_success": bool(an[kernel.A_SUCCESS]),
         }
+        for i, key in enumerate(_REWARD_KEYS):
+            info[key] = 0.0 if step_info is None else float(step_info[kernel.I_TERMS + i])
         if self.always_compute_grip:
-            info["grip_objective"] = float(an.grip)
+            info["grip_objective"] = grip
         return info
 
     # ------------------------------------------------------------------ rendering
@@ -824,22 +710,22 @@ class FrictionlessGraspEnv(gym.Env):
                 'render_mode="rgb_array" or "human"'
             )
             return None
-        if self._state is None:
+        if self._episode is None:
             raise RuntimeError("call reset() before render()")
         if self._renderer is None:
             self._renderer = Renderer(*self.render_size, fps=self.metadata["render_fps"])
-        frame = self._renderer.draw(self._state, self._caption())
+        frame = self._renderer.draw(self._episode.state, self._caption())
         if self.render_mode == "human":
             self._renderer.show(frame)
             return None
         return frame
 
     def _caption(self) -> str:
-        an = self._analysis
-        text = f"{self._state.scene.name} | step {self._steps}"
-        if an.form_closure:
-            y = an.grip / self._state.scene.object_weight
-            text += f" | form closure | y* = {y:.2f} W"
+        episode = self._episode
+        scene, an = episode.state.scene, episode.an
+        text = f"{scene.name} | step {int(episode.ep[kernel.E_STEPS])}"
+        if an[kernel.A_CLOSURE]:
+            text += f" | form closure | y* = {an[kernel.A_GRIP] / scene.object_weight:.2f} W"
         else:
             text += " | no form closure"
         return text
@@ -865,18 +751,6 @@ def _copy_generator(rng: np.random.Generator) -> np.random.Generator:
     bits = type(rng.bit_generator)(0)
     bits.state = rng.bit_generator.state
     return np.random.Generator(bits)
-
-
-def _same_contacts(new: State, old: State) -> bool:
-    """Whether ``new`` has the contacts of ``old``, object pose included: the simulator
-    handed them on (the hand moved clear of an object at rest), or the object and the hand
-    are where they were (the contacts of a state at rest follow from the two alone)."""
-    if new.contacts is old.contacts:
-        return True
-    return (
-        new.object_pose.tolist() == old.object_pose.tolist()
-        and new.hand.tolist() == old.hand.tolist()
-    )
 
 
 __all__ = ["REWARD_TERMS", "FrictionlessGraspEnv"]

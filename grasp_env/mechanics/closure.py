@@ -21,8 +21,9 @@ from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import Scene
 from grasp_env.core.state import State, require_state
 from grasp_env.errors import SolverError
+from grasp_env.kernel import analysis
 from grasp_env.sim.pose import constraint_matrix
-from grasp_env.solvers import dense, lp, simplex, velocity_lp
+from grasp_env.solvers import dense, lp
 
 
 def V_ob(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.ndarray:
@@ -70,11 +71,6 @@ def W_O(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.nd
     along ``n_i`` at ``p_i``, moments about the centre of mass (``= V_ob^T``)."""
     return V_ob(points_W, normals_W, com_W).T
 
-
-#: Absolute tolerance of the grip LP, whose data are in units of the weight and palm width.
-GRIP_LP_TOL = 1e-10
-#: Largest constraint residual of an accepted fast grip LP answer (else HiGHS solves it).
-GRIP_CHECK_TOL = 1e-9
 
 #: ``w / W``: the gravity wrench in units of the object's weight.
 _UNIT_GRAVITY = np.array([0.0, 1.0, 0.0])
@@ -157,16 +153,15 @@ def escape_direction(state: State) -> np.ndarray | None:
 def is_form_closure(state: State) -> bool:
     """Form closure (section 2.5): with the hand fixed, ``V_ob dq >= 0`` only for ``dq = 0``.
 
-    Decided exactly by :func:`grasp_env.solvers.fastlp.form_closure_fast` on the scaled rows
-    ``[n_i, r_i x n_i / rho]`` (the rows positively span R^3); :func:`escape_direction`
-    (HiGHS) gives the same answer and, when there is one, the twist that escapes.
+    Decided exactly on the scaled rows ``[n_i, r_i x n_i / rho]`` (the rows positively span
+    R^3) by :func:`grasp_env.kernel.analysis.form_closure`, which the env runs too;
+    :func:`escape_direction` (HiGHS) gives the same answer and, when there is one, the twist
+    that escapes.
     """
     require_state(state)
     points, normals, _ = state.contact_arrays()
     com = np.asarray(state.object_pose, dtype=float)  # V_ob reads its x and y
-    V = constraint_matrix(points, normals, com)
-    V[:, 2] *= 1.0 / gyration_radius(state.scene)
-    return velocity_lp.form_closure(V)  # what form_closure_fast runs, called directly
+    return analysis.form_closure(points, normals, com, gyration_radius(state.scene))
 
 
 def _equilibrium_rows(V: np.ndarray, length: float) -> np.ndarray:
@@ -194,17 +189,6 @@ def is_force_closure(state: State) -> bool:
     return res.status == "optimal"
 
 
-def _grip_checks(A_eq, A_ub, b_ub, x, value: float, bound: float) -> bool:
-    """Whether a grip LP answer (data of order one) satisfies its constraints to
-    ``GRIP_CHECK_TOL`` and respects the lower bound on the optimum."""
-    # products as elementwise sums, not BLAS: the same bits on every machine
-    if np.abs((A_eq * x).sum(axis=1) - _UNIT_GRAVITY).max() > GRIP_CHECK_TOL:
-        return False
-    if len(b_ub) and ((A_ub * x).sum(axis=1) - b_ub).max() > GRIP_CHECK_TOL:
-        return False
-    return value >= bound * (1.0 - 1e-6)
-
-
 def grip_objective(state: State) -> float:
     """Minimum total contact force ``y*`` of eqs. 31-36, ``inf`` if no grip holds the object.
 
@@ -216,16 +200,35 @@ def grip_objective(state: State) -> float:
                            tau_min <= tau <= tau_max (eqs. 35-36),  c >= 0 (eq. 34)
 
     as a direct LP in ``c`` with ``tau = s - W_F c`` substituted, by the compiled simplex
-    method of :mod:`grasp_env.solvers.simplex` (the tests compare it with HiGHS and with the paper's
-    null-space form, eqs. 29-33); an answer that is not optimal, or fails its checks (the
-    constraints to ``GRIP_CHECK_TOL``, the lower bound below), is decided again by HiGHS
-    (:func:`grasp_env.solvers.lp.solve`). The LP is solved in units of the
-    object's weight ``W`` (forces) and ``W`` x palm width (moments, torques), so its answer
-    does not depend on the scene's units.
+    method (:func:`grasp_env.kernel.analysis.grip_objective`, which the env runs too; the
+    tests compare it with HiGHS and with the paper's null-space form, eqs. 29-33); an answer
+    that is not optimal, or fails its checks, is decided again by HiGHS
+    (:func:`grasp_env.solvers.lp.solve`). The LP is solved in units of the object's weight
+    ``W`` (forces) and ``W`` x palm width (moments, torques), so its answer does not depend
+    on the scene's units.
 
     Since the force rows of ``W_O c = w`` sum unit normals, ``y* >= |w| / max_i |n_i| = W``:
     a positive grip never reads as free.
     """
+    p, n, b, _ = _state_arrays(state)
+    scene = state.scene
+    W, L = scene.object_weight, scene.palm.width
+    outcome, value = analysis.grip_objective(
+        p, n, b, np.asarray(state.object_pose, dtype=float), state.hand, L / 2.0, L, W,
+        analysis.grip_constants(scene),
+    )  # fmt: skip
+    if outcome == analysis.GRIP_FOUND:
+        return value
+    if outcome == analysis.GRIP_NONE:
+        return math.inf
+    return reference_grip(state)
+
+
+def reference_grip(state: State) -> float:
+    """``y*`` of :func:`grip_objective` by HiGHS (:func:`grasp_env.solvers.lp.solve`), from
+    :func:`W_F` and :func:`finger_gravity_moments`: the reference for near-degenerate
+    contact sets (several contacts at one point), where the compiled simplex method can
+    pivot on rounding and its answer fails its checks."""
     p, n, b, V = _state_arrays(state)
     scene = state.scene
     if len(n) == 0:
@@ -247,26 +250,18 @@ def grip_objective(state: State) -> float:
     A_ub = np.array(rows).reshape(-1, len(n))
     b_ub = np.array(rhs, dtype=float)
     A_eq = _equilibrium_rows(V, L)
-    # The triangle inequality on the force rows (|sum c_i n_i| = 1 in units of W) bounds the
-    # optimum below independently of the solver.
     bound = 1.0 / float(geo.norms(n).max())
-    status, x, value = simplex.solve(np.ones(len(n)), A_eq, _UNIT_GRAVITY, A_ub, b_ub, GRIP_LP_TOL)
-    if not (status == simplex.OPTIMAL and _grip_checks(A_eq, A_ub, b_ub, x, value, bound)):
-        # Near-degenerate contact sets (several contacts at one point) can leave the tableau
-        # pivoting on rounding: where the fast answer fails its checks (or is not optimal),
-        # the reference solver decides.
-        res = lp.solve(
-            np.ones(len(n)), A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=_UNIT_GRAVITY, bounds=(0, None)
+    res = lp.solve(
+        np.ones(len(n)), A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=_UNIT_GRAVITY, bounds=(0, None)
+    )
+    if res.status == "infeasible":
+        return math.inf
+    if res.status != "optimal":
+        raise SolverError(f"grip LP: {res.status}", status=res.status)
+    if res.value < bound * (1.0 - 1e-6):
+        raise SolverError(
+            f"grip LP optimum {res.value!r} W is below its lower bound {bound!r} W",
+            status="inconsistent",
         )
-        if res.status == "infeasible":
-            return math.inf
-        if res.status != "optimal":
-            raise SolverError(f"grip LP: {res.status}", status=res.status)
-        value = res.value
-        if value < bound * (1.0 - 1e-6):
-            raise SolverError(
-                f"grip LP optimum {value!r} W is below its lower bound {bound!r} W",
-                status="inconsistent",
-            )
     # Within the LP's tolerance of the bound: rounding, clamp to it.
-    return W * max(value, bound)
+    return W * max(res.value, bound)

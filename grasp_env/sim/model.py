@@ -39,6 +39,9 @@ FIELDS = {
     "thinnest": "the thinnest of object, palm and fingers",
     "reference_lp": "solve the motion LP with HiGHS (the reference path) instead of the "
     "exact basis enumeration",
+    "python_lp": "whether compiled code may call HiGHS (through Python) for a motion LP the "
+    "basis enumeration cannot decide; else it raises SolverError (code that catches errors "
+    "in compiled code cannot catch them from Python)",
 }
 
 Model = namedtuple("Model", list(FIELDS))
@@ -62,9 +65,11 @@ def pack(model: Model) -> tuple:
 def unpack(points, body, scale, per_length, gravity, reach, numbers: np.ndarray) -> Model:
     """The :class:`Model` :func:`pack` made (fields in :data:`FIELDS` order)."""
     n_object, n_vertices, half, tol, newton_tol, ftol, size, rho, weight, length = numbers[:10]
-    max_step, fall_step, max_iterations, max_solves, thinnest, reference_lp = numbers[10:]
+    max_step, fall_step, max_iterations, max_solves, thinnest, reference_lp, python_lp = numbers[
+        10:
+    ]
     return Model(
         points, body, int(n_object), int(n_vertices), half, tol, newton_tol, ftol, size, rho,
         weight, length, scale, per_length, gravity, max_step, fall_step, int(max_iterations),
-        int(max_solves), reach, thinnest, reference_lp != 0.0,
+        int(max_solves), reach, thinnest, reference_lp != 0.0, python_lp != 0.0,
     )  # fmt: skip

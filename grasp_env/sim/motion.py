@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit, objmode
 
 from grasp_env.compiled import CACHE
+from grasp_env.errors import SolverError
 from grasp_env.sim import contact_sets
 from grasp_env.sim.dependence import free_rows
 from grasp_env.sim.hand import contact_xi
@@ -43,13 +44,16 @@ def motion_lp(model, V: np.ndarray, xi: np.ndarray) -> tuple[int, np.ndarray, np
     enumeration; where it cannot decide at its tolerance, again with the looser dual
     tolerance of a cost on the boundary of equilibrium (a force just reaching zero,
     :data:`grasp_env.solvers.velocity_lp.BOUNDARY_TOL`); HiGHS on the reference path and where
-    that cannot decide either."""
+    that cannot decide either (through Python: with ``model.python_lp`` False a
+    ``SolverError`` instead, for the caller to move again from Python)."""
     if not model.reference_lp:
         cost = np.array([0.0, model.weight, 0.0])
         for dual_tol in (velocity_lp.FEAS_TOL, velocity_lp.BOUNDARY_TOL):
             status, v, lam, value, _ = velocity_lp.solve(V, xi, cost, dual_tol)
             if status != velocity_lp.UNDECIDED:
                 return status, v, lam, value
+    if not model.python_lp:
+        raise SolverError("the motion LP needs the reference solver, through Python")
     with objmode(status="int64", v="float64[:]", lam="float64[:]", value="float64"):
         status, v, lam, value = reference_motion_lp(V, xi, model.weight)
     return status, v, lam, value

@@ -22,7 +22,6 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 
-import grasp_env
 from agents import evaluate as ev
 from agents import train_ppo as tp
 from agents.residual import PlannerResidual
@@ -543,12 +542,16 @@ def test_training_info_keeps_what_training_reads():
         expected = {k: v for k, v in info.items() if k.startswith("reward_")}
         expected["is_success"] = info["is_success"]
         assert info_kept == expected
-    # a step that ends in a simulator error passes its message on
-    kept.unwrapped._sim._move = lambda *args: (_ for _ in ()).throw(
-        grasp_env.SimulationError("test")
-    )
-    *_, terminated, _, info_kept = kept.step(actions[0])
-    assert terminated and info_kept["sim_error"] == "SimulationError: test"
+    # a step that ends in a simulator error (a work limit of one pose solve) passes its
+    # message on
+    sim = kept.unwrapped.simulator
+    sim.model = sim.model._replace(max_solves=1)
+    terminated = False
+    for action in actions:
+        *_, terminated, _, info_kept = kept.step(action)
+        if terminated:
+            break
+    assert terminated and info_kept["sim_error"].startswith("WorkLimitError")
     assert set(info_kept) == {"is_success", "sim_error", *(f"reward_{t}" for t in tp.REWARD_TERMS)}
 
 

@@ -279,9 +279,9 @@ def test_bad_seed_refused(case: str, seed: Any, field: str, value: str) -> None:
 @pytest.mark.parametrize(("case", "action", "field", "value"), ACTIONS, ids=ids(ACTIONS))
 def test_bad_action_refused(case: str, action: Any, field: str, value: str) -> None:
     env, twin = twin_envs()
-    before = env._get_obs()
+    before = env._observation()
     assert_refused(lambda: env.step(action), field, value, ValueError)
-    np.testing.assert_array_equal(env._get_obs(), before)
+    np.testing.assert_array_equal(env._observation(), before)
     assert_same_after(env, twin)
 
 
@@ -357,16 +357,14 @@ def test_out_of_range_action_is_clipped_not_refused() -> None:
 
 
 # ---------------------------------------------------------------------------------------
-# Through gymnasium.make: the same refusals, and the wrappers it adds are left as they were
+# Through gymnasium.make (the env itself, with its own time limit): the same refusals
 # ---------------------------------------------------------------------------------------
 
 KW = {"scene": "fig13", "palm_control": True}
 MAKERS = {
     "make": lambda: gym.make(ENV_ID, **KW),
-    "env-checker-time-limit": lambda: gym.make(
-        ENV_ID, disable_env_checker=False, max_episode_steps=50, **KW
-    ),
-    "no-env-checker": lambda: gym.make(ENV_ID, disable_env_checker=True, **KW),
+    "time-limit": lambda: gym.make(ENV_ID, time_limit=50, **KW),
+    "no-time-limit": lambda: gym.make(ENV_ID, time_limit=None, **KW),
 }
 MAKE_IDS = list(MAKERS)
 
@@ -395,8 +393,8 @@ def made_twins(make) -> tuple[gym.Env, gym.Env]:
 @pytest.mark.parametrize("make", MAKERS.values(), ids=MAKE_IDS)
 @pytest.mark.parametrize(("case", "kwargs", "field", "value"), RESETS, ids=ids(RESETS))
 def test_made_env_refused_first_reset(make, case: str, kwargs: dict, field: str, value: str):
-    """A refused first reset leaves the made env as new: reset and step then work (the env
-    checker runs its first-reset and first-step checks) and match a twin's."""
+    """A refused first reset leaves the made env as new: reset and step then work and match
+    a twin's."""
     env, twin = make(), make()
     assert_refused(lambda: env.reset(**kwargs), field, value, ValueError)
     (o1, _), (o2, _) = env.reset(seed=0), twin.reset(seed=0)
@@ -413,16 +411,16 @@ def test_made_env_refused_reset_mid_episode(make, case: str, kwargs: dict, field
     env, twin = made_twins(make)
     for e in (env, twin):
         e.step(ACTION)
-    before = env.unwrapped._get_obs()
+    before = env.unwrapped._observation()
     assert_refused(lambda: env.reset(**kwargs), field, value, ValueError)
-    np.testing.assert_array_equal(env.unwrapped._get_obs(), before)
+    np.testing.assert_array_equal(env.unwrapped._observation(), before)
     assert_same_after(env, twin)
 
 
 def test_made_env_refused_reset_keeps_the_time_limit() -> None:
-    """``TimeLimit`` zeroes its count before passing ``reset`` on: after a refused reset the
-    episode is still truncated at its limit."""
-    env, twin = made_twins(lambda: gym.make(ENV_ID, max_episode_steps=3, **KW))
+    """After a refused reset the episode is still truncated at its limit (gymnasium's
+    ``TimeLimit`` would have zeroed its count before passing the reset on)."""
+    env, twin = made_twins(lambda: gym.make(ENV_ID, time_limit=3, **KW))
     for e in (env, twin):
         e.step(ACTION)
     assert_refused(lambda: env.reset(options={"palm": [0, 0.7]}), r"palm", r"0\.7", ValueError)
@@ -435,77 +433,22 @@ def test_made_env_refused_reset_keeps_the_time_limit() -> None:
 def test_made_env_bad_action_refused(make, case: str, action: Any, field: str, value: str):
     """Refused as the first step (the env checker's first-step check comes after it)."""
     env, twin = made_twins(make)
-    before = env.unwrapped._get_obs()
+    before = env.unwrapped._observation()
     assert_refused(lambda: env.step(action), field, value, ValueError)
-    np.testing.assert_array_equal(env.unwrapped._get_obs(), before)
+    np.testing.assert_array_equal(env.unwrapped._observation(), before)
     assert_same_after(env, twin)
 
 
 @pytest.mark.parametrize("make", MAKERS.values(), ids=MAKE_IDS)
 def test_made_env_bad_action_refused_mid_episode(make) -> None:
-    """Refused after steps, when steps pass straight through the outer wrapper: the time
-    limit's count and the env are as a twin's that never saw the bad action."""
+    """Refused after steps: the time limit's count and the env are as a twin's that never
+    saw the bad action."""
     env, twin = made_twins(make)
     for _ in range(4):
         env.step(ACTION)
         twin.step(ACTION)
-    assert env._steps_pass_through  # gymnasium's wrappers all pass a step on first
     assert_refused(lambda: env.step([math.nan] * 5), r"action", r"nan", ValueError)
-    steps = [w._elapsed_steps for w in (env, twin) if hasattr(w, "_elapsed_steps")]
-    assert len(set(steps)) <= 1
     assert_same_after(env, twin)
-
-
-class CountsFirst(gym.Wrapper):
-    """A wrapper that changes itself before it passes a step on."""
-
-    def __init__(self, env: gym.Env) -> None:
-        super().__init__(env)
-        self.calls = 0
-
-    def step(self, action: Any):
-        self.calls += 1
-        return self.env.step(action)
-
-
-def test_restore_on_error_keeps_saving_for_an_unknown_wrapper() -> None:
-    from grasp_env.envs.restore import RestoreOnError
-
-    env = RestoreOnError(CountsFirst(FrictionlessGraspEnv("fig13", palm_control=True)))
-    env.reset(seed=3)
-    env.step(ACTION)
-    assert not env._steps_pass_through
-    assert_refused(lambda: env.step([math.nan] * 5), r"action", r"nan", ValueError)
-    assert env.env.calls == 1
-    env.step(ACTION)
-    assert env.env.calls == 2
-
-
-def test_restore_on_error_knows_rl_zoo_time_limit(monkeypatch) -> None:
-    """rl_zoo3's TimeLimit counts after the step returns, as gymnasium's does (importing it
-    replaces gymnasium's: put back afterwards)."""
-    import gymnasium.envs.registration as registration
-
-    monkeypatch.setattr(gym.wrappers, "TimeLimit", gym.wrappers.TimeLimit)
-    monkeypatch.setattr(registration, "TimeLimit", None, raising=False)
-    from rl_zoo3.gym_patches import PatchedTimeLimit
-
-    from grasp_env.envs.restore import step_forwards_first
-
-    inner = FrictionlessGraspEnv("fig13")
-    assert step_forwards_first(PatchedTimeLimit(inner, max_episode_steps=5))
-    assert not step_forwards_first(CountsFirst(inner))
-
-
-def test_made_env_restore_on_error_is_outermost_once() -> None:
-    env = gym.make(ENV_ID, **KW)
-    again = gym.make(env.spec)  # recreated from its spec: the same stack, no second copy
-    for e in (env, again):
-        assert str(e).count("RestoreOnError") == 1
-        # rl_zoo3, once imported, replaces gymnasium's TimeLimit by its PatchedTimeLimit
-        assert re.match(
-            r"<RestoreOnError<(Patched)?TimeLimit<OrderEnforcing<PassiveEnvChecker<", str(e)
-        )
 
 
 def test_make_vec_sync_refusals() -> None:

@@ -25,6 +25,7 @@ from scipy.spatial import ConvexHull, QhullError
 import grasp_env
 from grasp_env.core.state import Contact, State
 from grasp_env.errors import SolverError
+from grasp_env.kernel import analysis
 from grasp_env.mechanics import closure as mech
 from grasp_env.solvers import lp, qp
 from grasp_env.solvers.motion_lp import force_lp
@@ -711,16 +712,23 @@ def test_analysis_is_unit_free(k, m):
 
 
 def test_grip_objective_rejected_fast_answer_goes_to_highs(monkeypatch):
-    """A fast LP answer below the independent lower bound ``W`` (or off its constraints) is
-    not a grip: HiGHS decides instead, and agrees with the null-space form."""
+    """A fast LP answer below the independent lower bound ``W`` (or off its constraints)
+    fails its checks, and is not a grip: HiGHS decides instead, and agrees with the
+    null-space form."""
     state, _ = _parallel_faces_grip(SCENE, (-1.0, 1.0))
     p, n, bodies = (
         np.array([getattr(c, k) for c in state.contacts]) for k in ("point", "normal", "body")
     )
     ref, _ = nullspace_grip(state.scene, state.object_pose, state.hand, p, n, list(bodies))
     k = len(state.contacts)
-    fake = (mech.simplex.OPTIMAL, np.full(k, 0.5 / k), 0.5)
-    monkeypatch.setattr(mech.simplex, "solve", lambda *a, **kw: fake)
+    A_eq = np.vstack([n.T, np.zeros(k)])  # forces summing to half the weight: too little
+    x = np.full(k, 0.5 / k)
+    empty = np.zeros((0, k))
+    unit = np.array([0.0, 1.0, 0.0])
+    assert not analysis._grip_checks(A_eq, unit, empty, np.zeros(0), x, 0.5, 1.0)
+    monkeypatch.setattr(
+        mech.analysis, "grip_objective", lambda *a: (analysis.GRIP_UNDECIDED, math.nan)
+    )
     assert grasp_env.grip_objective(state) == pytest.approx(ref, rel=1e-7)
 
 
@@ -729,8 +737,9 @@ def test_grip_objective_below_its_bound_on_both_solvers_is_a_solver_error(monkey
     solver failure, not a grip."""
     state, _ = _parallel_faces_grip(SCENE, (-1.0, 1.0))
     k = len(state.contacts)
-    fake = (mech.simplex.OPTIMAL, np.full(k, 0.5 / k), 0.5)
-    monkeypatch.setattr(mech.simplex, "solve", lambda *a, **kw: fake)
+    monkeypatch.setattr(
+        mech.analysis, "grip_objective", lambda *a: (analysis.GRIP_UNDECIDED, math.nan)
+    )
     monkeypatch.setattr(
         mech.lp, "solve", lambda *a, **kw: lp.LPResult("optimal", np.full(k, 0.5 / k), 0.5)
     )

@@ -1,5 +1,5 @@
 """The observation of ``FrictionlessGrasp-v0``: its ranges and layout (the env's docstring
-lists every entry) and the geometry it reports."""
+lists every entry) and the geometry it reports, compiled."""
 
 from __future__ import annotations
 
@@ -10,8 +10,6 @@ from numba import njit
 
 from grasp_env.compiled import CACHE
 from grasp_env.core import geometry as geo
-from grasp_env.core import kinematics as kin
-from grasp_env.core.state import State
 
 # Workspace and observation ranges, in palm widths (lengths) and radians, about the object's
 # scene position ``x0`` (x) and the support (y).
@@ -35,13 +33,61 @@ BODIES = geo.BODY_NAMES
 BODY_INDEX = {name: 2 * i for i, name in enumerate(BODIES)}
 
 
-def in_palm_frame(state: State) -> tuple[float, float, float]:
+#: Entries of the observation's pose block (the hand, the object in the world and in the palm
+#: frame), before the object's vertices.
+POSE_ENTRIES = 13
+#: Entries of the contact block after the vertices and their mask: per body a count and a
+#: force, form closure, y*, the object's height, then (``hand_features``) the contact
+#: positions on the three hand bodies.
+CONTACT_ENTRIES = 2 * len(BODIES) + 3
+POSITION_ENTRIES = len(HAND_BODIES)
+
+
+def contact_block_at(n: int) -> int:
+    """Index of the contact block in an observation with ``n`` padded vertices."""
+    return POSE_ENTRIES + 3 * n
+
+
+def hand_block_at(n: int) -> int:
+    """Index of the fingertips and distances (``hand_features``) with ``n`` padded vertices."""
+    return contact_block_at(n) + CONTACT_ENTRIES + POSITION_ENTRIES
+
+
+@njit(cache=CACHE)
+def in_palm_frame(hand: np.ndarray, pose: np.ndarray) -> tuple[float, float, float]:
     """Object pose ``(x, y, theta)`` in the palm frame."""
-    x_p, y_p, th_p, _, _ = state.hand.tolist()
-    x_o, y_o, th_o = state.object_pose.tolist()
-    dx, dy = x_o - x_p, y_o - y_p
-    c, s = math.cos(th_p), math.sin(th_p)
-    return (c * dx + s * dy, -s * dx + c * dy, th_o - th_p)
+    dx, dy = pose[0] - hand[0], pose[1] - hand[1]
+    c, s = math.cos(hand[2]), math.sin(hand[2])
+    return (c * dx + s * dy, -s * dx + c * dy, pose[2] - hand[2])
+
+
+@njit(cache=CACHE)
+def contact_positions(
+    hand: np.ndarray, points: np.ndarray, bodies: np.ndarray, half: float,
+    lengths: np.ndarray, out: np.ndarray,
+) -> None:  # fmt: skip
+    """Where the object touches each hand body (palm, finger 1, finger 2), into ``out`` (3,):
+    the mean x of its contact points (``points`` on ``bodies``) in the body's frame over the
+    body's length (``lengths``; palm: from the palm's centre, in palm widths, in [-0.5, 0.5];
+    finger: from the joint, in finger lengths, in [0, 1]); 0 where the body has no
+    contact."""
+    c, s = math.cos(hand[2]), math.sin(hand[2])
+    origin_x = (hand[0], hand[0] - c * half, hand[0] + c * half)
+    origin_y = (hand[1], hand[1] - s * half, hand[1] + s * half)
+    angle = (hand[2], hand[2] + hand[3], hand[2] + hand[4])
+    sums = np.zeros(3)
+    counts = np.zeros(3)
+    for i in range(bodies.shape[0]):
+        k = bodies[i] - 1
+        if k < 0:
+            continue  # the support
+        x, y, phi = origin_x[k], origin_y[k], angle[k]
+        sums[k] += (math.cos(phi) * (points[i, 0] - x) + math.sin(phi) * (points[i, 1] - y)) / (
+            lengths[k]
+        )
+        counts[k] += 1.0
+    for k in range(3):
+        out[k] = sums[k] / counts[k] if counts[k] > 0.0 else 0.0
 
 
 @njit(cache=CACHE)
@@ -75,27 +121,6 @@ def finish_observation(
             value = high[i]
         out[i] = value
     return out
-
-
-def contact_positions(state: State) -> tuple[float, float, float]:
-    """Where the object touches each hand body (palm, finger 1, finger 2): the mean x of its
-    contact points in the body's frame over the body's length (palm: from the palm's centre,
-    in palm widths, in [-0.5, 0.5]; finger: from the joint, in finger lengths, in [0, 1]); 0
-    where the body has no contact."""
-    scene = state.scene
-    poses = kin.body_poses_W(scene, state.hand)
-    lengths = (scene.palm.width, scene.fingers[0].length, scene.fingers[1].length)
-    sums, counts = [0.0, 0.0, 0.0], [0, 0, 0]
-    for c in state.contacts:
-        if c.body == "support":
-            continue
-        k = HAND_BODIES.index(c.body)
-        x, y, phi = poses[k]
-        sums[k] += (math.cos(phi) * (c.point[0] - x) + math.sin(phi) * (c.point[1] - y)) / lengths[
-            k
-        ]
-        counts[k] += 1
-    return tuple(total / n if n else 0.0 for total, n in zip(sums, counts, strict=True))
 
 
 def observation_bounds(n: int, hand_features: bool = False) -> tuple[np.ndarray, np.ndarray]:

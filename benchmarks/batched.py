@@ -1,0 +1,218 @@
+"""Batched env throughput: env steps/s of ``gymnasium.make_vec(env_id, num_envs=N)`` (the
+batched env, one compiled call per step) against CartPole-v1's ``SyncVectorEnv`` and its own
+numpy-batched vector env, measured in the same run; against N (1 to 256) and threads (1, 2);
+the cost of a reset; and where the time of a batched step goes.
+
+Random actions (uniform, drawn in bulk from a seeded generator), resets included. Random
+shapes are drawn from a shape pool (``shape_pool``, prepared before timing: its entries are
+made once and reused, as in training). Each configuration is stepped for ``budget`` seconds
+in each of ``rounds`` rounds, in a rotated order; reported are medians over rounds.
+
+Usage: ``python -m benchmarks.batched [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numba
+import numpy as np
+
+import grasp_env
+from benchmarks.common import OUT, headless, table, write
+from grasp_env.kernel import step as kernel
+
+IDS = ("FrictionlessGrasp-v0", "FrictionlessGraspRandomShapes-v0", "FrictionlessGraspLift-v0")
+#: Pool of random shapes for the ids that draw them, prepared before timing.
+POOL = 1024
+#: Targets at 64 envs and the machine's threads: (id, baseline, least ratio).
+TARGETS = (
+    ("FrictionlessGrasp-v0", "CartPole-v1 SyncVectorEnv", 2.0),
+    ("FrictionlessGraspLift-v0", "CartPole-v1 SyncVectorEnv", 0.5),
+)
+MOONSHOT = ("FrictionlessGrasp-v0", "CartPole-v1 vector env", 0.5)
+
+
+def make(env_id: str, n: int, threads: int | None = None) -> gym.vector.VectorEnv:
+    """The batched env of ``env_id`` with ``n`` sub-envs, its shape pool prepared."""
+    kwargs = {"shape_pool": POOL} if "shape_randomizer" in gym.spec(env_id).kwargs else {}
+    venv = gym.make_vec(env_id, num_envs=n, threads=threads, **kwargs)
+    if kwargs:
+        first = venv.envs[0]
+        for entry in range(POOL):
+            key = (0, entry)
+            if key not in first._sims:
+                first._sims[key] = grasp_env.Simulator(first._scene_of(key))
+            first._first_state(first._sims[key], key)
+    return venv
+
+
+def rate(venv: gym.vector.VectorEnv, budget: float, seed: int) -> float:
+    """Env steps/s of random actions for ``budget`` seconds (after 10 untimed steps)."""
+    rng = np.random.default_rng(seed)
+    space = venv.single_action_space
+    n = venv.num_envs
+    venv.reset(seed=seed)
+    if isinstance(space, gym.spaces.Discrete):
+        draws = rng.integers(space.n, size=(4096, n))
+    else:
+        draws = rng.uniform(space.low, space.high, (4096, n, *space.shape)).astype(np.float32)
+    for t in range(10):
+        venv.step(draws[t])
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < budget:
+        for _ in range(16):
+            venv.step(draws[steps % len(draws)])
+            steps += 1
+    return n * steps / (time.perf_counter() - start)
+
+
+def reset_times(env_id: str, resets: int) -> list[float]:
+    """Seconds per ``reset()`` of a single env with a prepared shape pool."""
+    venv = make(env_id, 1)
+    env = venv.envs[0]
+    env.reset(seed=0)
+    out = []
+    for _ in range(resets):
+        start = time.perf_counter()
+        env.reset()
+        out.append(time.perf_counter() - start)
+    return out
+
+
+def step_parts(env_id: str, n: int, steps: int) -> dict[str, float]:
+    """Where a batched step's time goes: the compiled call, Python taking steps over, resets
+    and the rest (gymnasium's API: actions checked, infos built), in seconds per step."""
+    import grasp_env.envs.vector as vector
+
+    venv = make(env_id, n, threads=1)
+    rng = np.random.default_rng(0)
+    space = venv.single_action_space
+    draws = rng.uniform(space.low, space.high, (steps, n, *space.shape)).astype(np.float32)
+    venv.reset(seed=0)
+    parts = {"compiled step": 0.0, "resets": 0.0, "Python's steps": 0.0}
+    real_batch, real_reset = vector.step_batch, type(venv.envs[0]).reset
+
+    def timed_batch(*args):
+        start = time.perf_counter()
+        real_batch(*args)
+        parts["compiled step"] += time.perf_counter() - start
+
+    def timed_reset(self, **kwargs):
+        start = time.perf_counter()
+        out = real_reset(self, **kwargs)
+        parts["resets"] += time.perf_counter() - start
+        return out
+
+    vector.step_batch = timed_batch
+    type(venv.envs[0]).reset = timed_reset
+    fallbacks = 0
+    try:
+        start = time.perf_counter()
+        for a in draws:
+            venv.step(a)
+            fallbacks += int((venv._status != kernel.OK).sum())
+        total = time.perf_counter() - start
+    finally:
+        vector.step_batch = real_batch
+        type(venv.envs[0]).reset = real_reset
+    parts["rest"] = total - sum(parts.values())
+    return {k: v / steps for k, v in parts.items()} | {"steps Python took over": fallbacks}
+
+
+def run(quick: bool, out: Path) -> None:
+    headless()
+    budget, rounds = (0.5, 1) if quick else (3.0, 3)
+    sizes = (1, 64) if quick else (1, 4, 16, 64, 256)
+    threads = sorted({1, numba.config.NUMBA_NUM_THREADS})
+    configs = [("CartPole-v1 SyncVectorEnv", n, None) for n in sizes]
+    configs += [("CartPole-v1 vector env", n, None) for n in sizes]
+    configs += [(env_id, n, th) for env_id in IDS for n in sizes for th in threads]
+    envs = {}
+    for name, n, th in configs:
+        if name.startswith("CartPole"):
+            mode = "sync" if "Sync" in name else "vector_entry_point"
+            envs[name, n, th] = gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode=mode)
+        else:
+            envs[name, n, th] = make(name, n, th)
+    rates: dict[tuple, list[float]] = {key: [] for key in envs}
+    for r in range(rounds):
+        keys = list(envs)
+        keys = keys[r % len(keys) :] + keys[: r % len(keys)]
+        for key in keys:
+            rates[key].append(rate(envs[key], budget, seed=r))
+    med = {key: statistics.median(v) for key, v in rates.items()}
+    threads_max = threads[-1]
+    rows = []
+    for name, n, th in envs:
+        base = med["CartPole-v1 SyncVectorEnv", n, None]
+        native = med["CartPole-v1 vector env", n, None]
+        value = med[name, n, th]
+        rows.append(
+            [
+                name,
+                n,
+                "-" if th is None else th,
+                f"{value:,.0f}",
+                f"{value / base:.2f}x",
+                f"{value / native:.3f}x",
+            ]
+        )
+    lines = [
+        f"`python -m benchmarks.batched{' --quick' if quick else ''}`: env steps/s of random "
+        f"actions, resets included, median of {rounds} round(s) of {budget:g} s; random shapes "
+        f"from a prepared pool of {POOL}. Ratios are to CartPole-v1's `SyncVectorEnv` and to "
+        "its numpy-batched vector env (`vector_entry_point`) with the same number of envs, "
+        "measured in the same run.",
+        "",
+        *table(["env", "envs", "threads", "steps/s", "/ CartPole sync", "/ CartPole vector"], rows),
+        "",
+        "## Targets (64 envs, all threads)",
+        "",
+    ]
+    for env_id, baseline, least in (*TARGETS, MOONSHOT):
+        ratio = med[env_id, 64, threads_max] / med[baseline, 64, None]
+        kind = "moonshot" if (env_id, baseline, least) == MOONSHOT else "target"
+        verdict = "met" if ratio >= least else "not met"
+        lines.append(f"- {kind}: {env_id} >= {least}x {baseline}: {ratio:.2f}x ({verdict})")
+    resets = {env_id: reset_times(env_id, 20 if quick else 200) for env_id in IDS}
+    lines += [
+        "",
+        "## Resets (a single env, shape pool prepared)",
+        "",
+        *table(
+            ["env", "median ms", "p90 ms"],
+            [
+                [env_id, f"{1e3 * np.median(t):.3f}", f"{1e3 * np.percentile(t, 90):.3f}"]
+                for env_id, t in resets.items()
+            ],
+        ),
+        "",
+        "## Where a batched step's time goes (64 envs, one thread, per step of all 64)",
+        "",
+    ]
+    for env_id in IDS:
+        parts = step_parts(env_id, 64, 50 if quick else 400)
+        cells = ", ".join(
+            f"{k} {v:,}" if isinstance(v, int) else f"{k} {1e3 * v:.3f} ms"
+            for k, v in parts.items()
+        )
+        lines.append(f"- {env_id}: {cells}")
+    write(out, "Batched env throughput", lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="short budgets, 1 and 64 envs")
+    ap.add_argument("--out", type=Path, default=OUT / "batched.md", help="report (markdown)")
+    args = ap.parse_args(argv)
+    run(args.quick, args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

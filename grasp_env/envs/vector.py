@@ -1,0 +1,270 @@
+"""The batched env: ``num_envs`` episodes of one env id advanced by one compiled call
+(:func:`grasp_env.kernel.batch.step_batch`), behind gymnasium's vector API.
+
+``gymnasium.make_vec(env_id, num_envs=N)`` makes it for every registered id (its
+``vector_entry_point``). Each sub-env is a :class:`FrictionlessGraspEnv` with the same
+arguments, which does its resets and the rare steps the compiled core hands to Python; its
+steps run in the batch, on the same compiled functions. So sub-env ``i`` follows, bit for
+bit, a single env made with the same arguments, reset with seed ``seed + i`` (``reset(seed=
+seed)``; a list gives each its own) and stepped with the same actions; its later episodes
+are that single env's after ``reset()`` without a seed.
+
+Autoreset: ``SAME_STEP`` (declared in ``metadata``). A step that ends an episode returns the
+next episode's first observation; the last one is in ``infos["final_obs"]`` and the step's
+info in ``infos["final_info"]`` (each with its ``"_"``-prefixed mask).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numba
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numba import typed
+
+from grasp_env.arguments import integer
+from grasp_env.envs.episode import Episode
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.kernel import step as kernel
+from grasp_env.kernel.batch import step_batch
+
+#: The info entries of a step, as arrays over the sub-envs, and where the kernel holds them.
+INFO_FLAGS = {
+    "is_success": kernel.I_SUCCESS,
+    "form_closure": kernel.I_CLOSURE,
+    "jammed": kernel.I_JAMMED,
+    "hand_blocked": kernel.I_BLOCKED,
+    "dropped": kernel.I_DROPPED,
+}
+INFO_VALUES = {"grip_force": kernel.I_GRIP_FORCE} | {
+    f"reward_{term}": kernel.I_TERMS + i for i, term in enumerate(kernel.REWARD_TERMS)
+}
+
+
+class FrictionlessGraspVectorEnv(VectorEnv):
+    """``num_envs`` episodes of ``FrictionlessGrasp-v0`` (or another id's arguments) stepped
+    together in compiled code.
+
+    Args:
+        num_envs: how many sub-envs.
+        max_episode_steps: a time limit as ``gymnasium.make`` adds one to a single env: the
+            episodes end at the sooner of it and ``time_limit``.
+        threads: threads the step runs on (numba's; default: as many as the machine's
+            cores). The results do not depend on it.
+        **kwargs: the single env's arguments (:class:`FrictionlessGraspEnv`).
+
+    ``infos`` hold, for every sub-env, ``is_success``, ``form_closure``, ``grip_force``,
+    ``jammed``, ``hand_blocked``, ``dropped`` and the reward terms, as the single env's info
+    does (its poses, contacts and events are not batched: :meth:`sub_env` gives what a planner
+    reads), and ``sim_error`` where a step failed.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": ["rgb_array"],
+        "render_fps": 30,
+        "autoreset_mode": AutoresetMode.SAME_STEP,
+    }
+
+    def __init__(
+        self, num_envs: int, *, max_episode_steps: int | None = None, threads: int | None = None,
+        **kwargs: Any,
+    ) -> None:  # fmt: skip
+        self.num_envs = integer(num_envs, "num_envs", 1)
+        if max_episode_steps is not None:  # as gymnasium's TimeLimit on a single env
+            steps = integer(max_episode_steps, "max_episode_steps", 1)
+            limit = kwargs.get("time_limit")
+            kwargs["time_limit"] = steps if limit is None else min(steps, limit)
+        self.threads = (
+            numba.config.NUMBA_NUM_THREADS
+            if threads is None
+            else integer(threads, "threads", 1, most=numba.config.NUMBA_NUM_THREADS)
+        )
+        self.render_mode = kwargs.get("render_mode")
+        if self.render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {self.render_mode!r}")
+        self.envs = [FrictionlessGraspEnv(**kwargs) for _ in range(self.num_envs)]
+        first = self.envs[0]
+        for env in self.envs[1:]:  # one set of simulators and start states (the shape pool's)
+            env._sims, env._starts = first._sims, first._starts
+        self.single_action_space = first.action_space
+        self.single_observation_space = first.observation_space
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._settings, self._low, self._high = first._settings, first._obs_low, first._obs_high
+        n, size = self.num_envs, len(self._low)
+        capacity = 4 * first.max_vertices + 24  # every contact of an object in the hand
+        self._consts = np.zeros((n, kernel.CONSTS))
+        self._q, self._h = np.zeros((n, 3)), np.zeros((n, 5))
+        self._keys = np.zeros((n, capacity, 4), dtype=np.int64)
+        self._rows = np.zeros((n, capacity, 6))
+        self._counts = np.zeros(n, dtype=np.int64)
+        self._an = np.zeros((n, kernel.ANALYSIS))
+        self._ep = np.zeros((n, kernel.EPISODE))
+        self._obs = np.zeros((n, size), dtype=np.float32)
+        self._models = None
+        self._seen = np.zeros((n, size), dtype=np.float32)
+        self._info = np.zeros((n, kernel.INFO))
+        self._status = np.zeros(n, dtype=np.int64)
+
+    # ------------------------------------------------------------------ episodes and rows
+    def _load(self, i: int) -> None:
+        """Copy sub-env ``i``'s episode into row ``i`` of the batch."""
+        episode = self.envs[i]._episode
+        self._models[i] = episode.sim.compiled_model
+        self._consts[i] = episode.consts
+        self._write(i, episode)
+
+    def _write(self, i: int, episode: Episode) -> None:
+        m = len(episode.keys)
+        if m > self._keys.shape[1]:
+            self._grow(m)
+        self._q[i], self._h[i], self._counts[i] = episode.q, episode.h, m
+        self._keys[i, :m], self._rows[i, :m] = episode.keys, episode.rows
+        self._an[i], self._ep[i], self._obs[i] = episode.an, episode.ep, episode.obs
+
+    def _grow(self, m: int) -> None:
+        """Room for ``m`` contacts in every row."""
+        n = self.num_envs
+        keys, rows = np.zeros((n, m, 4), dtype=np.int64), np.zeros((n, m, 6))
+        keys[:, : self._keys.shape[1]], rows[:, : self._rows.shape[1]] = self._keys, self._rows
+        self._keys, self._rows = keys, rows
+
+    def _episode(self, i: int) -> Episode:
+        """Sub-env ``i``'s episode as the batch holds it, its state made afresh."""
+        episode = self.envs[i]._episode
+        m = self._counts[i]
+        episode.q, episode.h = self._q[i].copy(), self._h[i].copy()
+        episode.keys, episode.rows = self._keys[i, :m].copy(), self._rows[i, :m].copy()
+        episode.an, episode.ep = self._an[i].copy(), self._ep[i].copy()
+        episode.obs = self._obs[i].copy()
+        episode.state = episode.sim.make_state(episode.q, episode.h, episode.keys, episode.rows)
+        return episode
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        """Reset every sub-env: with ``seed`` an int, sub-env ``i`` with ``seed + i``; a list
+        gives each its seed (None: its own generator goes on). ``options`` go to every
+        sub-env's reset."""
+        if seed is None or (isinstance(seed, int | np.integer) and not isinstance(seed, bool)):
+            seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(
+                    f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r}"
+                )
+        observations, infos = [], []
+        for i, env in enumerate(self.envs):
+            obs, info = env.reset(seed=seeds[i], options=options)
+            observations.append(obs)
+            infos.append(info)
+        if self._models is None:
+            self._models = typed.List([env._episode.sim.compiled_model for env in self.envs])
+        for i in range(self.num_envs):
+            self._load(i)
+        return np.stack(observations), self._merged(infos)
+
+    def step(self, actions):
+        """One step of every sub-env (see the module docstring for the autoreset)."""
+        if self._models is None:
+            raise RuntimeError("call reset() before step()")
+        actions = np.asarray(actions)
+        shape = (self.num_envs, *self.single_action_space.shape)
+        if actions.shape != shape or actions.dtype.kind not in "fiu":
+            raise ValueError(f"actions must be real numbers of shape {shape}, got {actions!r}")
+        actions = actions.astype(np.float64)
+        if not np.isfinite(actions).all():
+            raise ValueError(f"actions must be finite, got {actions.tolist()}")
+        numba.set_num_threads(self.threads)
+        step_batch(
+            self._models, self._consts, self._settings, self._q, self._h, self._keys, self._rows,
+            self._counts, self._an, self._ep, self._obs, self._low, self._high, actions,
+            self._seen, self._info, self._status,
+        )  # fmt: skip
+        errors = {}
+        for i in np.flatnonzero(self._status != kernel.OK):
+            episode = self._episode(i)  # Python takes the step over, as the single env does
+            self._info[i] = 0.0
+            self._seen[i], self._info[i], error = episode.advance(
+                actions[i], self._settings, self._low, self._high
+            )
+            if error is not None:
+                errors[i] = error
+            self._write(i, episode)
+        return self._results(errors)
+
+    def _results(self, errors: dict[int, str]):
+        info = self._info
+        observations = self._seen.copy()
+        rewards = info[:, kernel.I_REWARD].copy()
+        terminated = info[:, kernel.I_TERMINATED] != 0.0
+        truncated = info[:, kernel.I_TRUNCATED] != 0.0
+        infos = self._step_infos(info, errors)
+        done = np.flatnonzero(terminated | truncated)
+        if len(done):
+            final = {"final_obs": observations.copy(), "_final_obs": np.zeros(self.num_envs, bool)}
+            final["_final_obs"][done] = True
+            infos |= final
+            infos["final_info"] = self._step_infos(info, errors)
+            infos["_final_info"] = final["_final_obs"].copy()
+            resets = []
+            for i in done:
+                obs, reset_info = self.envs[i].reset()
+                self._load(i)
+                observations[i] = obs
+                resets.append((i, reset_info))
+            for i, reset_info in resets:  # the next episode's first info, as gymnasium's
+                for key in (*INFO_FLAGS, *INFO_VALUES):
+                    infos[key][i] = reset_info[key]
+        return observations, rewards, terminated, truncated, infos
+
+    def _step_infos(self, info: np.ndarray, errors: dict[int, str]) -> dict[str, np.ndarray]:
+        everyone = np.ones(self.num_envs, dtype=bool)
+        out: dict[str, np.ndarray] = {}
+        for key, column in INFO_FLAGS.items():
+            out[key], out[f"_{key}"] = info[:, column] != 0.0, everyone
+        for key, column in INFO_VALUES.items():
+            out[key], out[f"_{key}"] = info[:, column].copy(), everyone
+        if errors:
+            out["sim_error"] = np.array([errors.get(i) for i in range(self.num_envs)], object)
+            out["_sim_error"] = np.isin(np.arange(self.num_envs), list(errors))
+        return out
+
+    def _merged(self, infos: list[dict]) -> dict[str, np.ndarray]:
+        """The reset infos of the sub-envs as arrays (the batched entries of a step)."""
+        out: dict[str, np.ndarray] = {}
+        everyone = np.ones(self.num_envs, dtype=bool)
+        for key in (*INFO_FLAGS, *INFO_VALUES):
+            out[key] = np.array([info[key] for info in infos])
+            out[f"_{key}"] = everyone
+        errors = [info.get("sim_error") for info in infos]
+        if any(e is not None for e in errors):
+            out["sim_error"] = np.array(errors, dtype=object)
+            out["_sim_error"] = np.array([e is not None for e in errors])
+        return out
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """Frames of every sub-env (``render_mode="rgb_array"``), as gymnasium's vector envs
+        give them."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode")
+            return None
+        if self._models is None:
+            raise RuntimeError("call reset() before render()")
+        return tuple(self.sub_env(i).render() for i in range(self.num_envs))
+
+    def sub_env(self, i: int) -> FrictionlessGraspEnv:
+        """Sub-env ``i``, its episode brought up to the batch's: its ``state``, ``simulator``
+        and ``simulate_action`` are what a planner reads (read them, do not step it)."""
+        self._episode(i)
+        return self.envs[i]
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for env in self.envs:
+            env.close()
+
+    def __repr__(self) -> str:
+        return f"FrictionlessGraspVectorEnv(num_envs={self.num_envs}, threads={self.threads})"
