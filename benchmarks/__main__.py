@@ -8,7 +8,9 @@ work_precision, profile, memory, planner (the scripted planner on random shapes,
 step_times (the step-time tail on adversarial shapes), ppo (PPO training throughput,
 ``ppo_throughput.py``; left out of ``--quick`` unless named with ``--only``), scripted_speedup
 (the scripted policy's episode rate against the simulator before its compiled core),
-step_parts (the env's shell and the compiled move timed apart, unprofiled).
+step_parts (the env's shell and the compiled move timed apart, unprofiled), batched (the
+batched env of ``gymnasium.make_vec`` against N and threads, resets, and where a batched
+step's time goes).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import time
 from pathlib import Path
 
 from benchmarks import (
+    batched,
     blas_variation,
     memory,
     planner_shapes,
@@ -48,6 +51,7 @@ SUITE = {
     "scripted_speedup": lambda quick, out: scripted_speedup.run(
         budget=3.0 if quick else 20.0, rounds=2 if quick else 3, out=out / "scripted_speedup.md"
     ),
+    "batched": lambda quick, out: batched.run(quick, out / "batched.md"),
 }
 QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget
 

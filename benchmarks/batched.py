@@ -37,18 +37,23 @@ TARGETS = (
 MOONSHOT = ("FrictionlessGrasp-v0", "CartPole-v1 vector env", 0.5)
 
 
-def make(env_id: str, n: int, threads: int | None = None) -> gym.vector.VectorEnv:
+def make(env_id: str, n: int, threads: int | None = None, pool: int = POOL):
     """The batched env of ``env_id`` with ``n`` sub-envs, its shape pool prepared."""
-    kwargs = {"shape_pool": POOL} if "shape_randomizer" in gym.spec(env_id).kwargs else {}
+    kwargs = {"shape_pool": pool} if "shape_randomizer" in gym.spec(env_id).kwargs else {}
     venv = gym.make_vec(env_id, num_envs=n, threads=threads, **kwargs)
-    if kwargs:
-        first = venv.envs[0]
-        for entry in range(POOL):
-            key = (0, entry)
-            if key not in first._sims:
-                first._sims[key] = grasp_env.Simulator(first._scene_of(key))
-            first._first_state(first._sims[key], key)
+    prepare_pool(venv)
     return venv
+
+
+def prepare_pool(venv) -> None:
+    """Make every entry of the batched env's shape pool (if it has one) before timing: in
+    training, they are made as resets first draw them, then reused."""
+    first = venv.envs[0]
+    for entry in range(first.shape_pool or 0):
+        key = (0, entry)
+        if key not in first._sims:
+            first._sims[key] = grasp_env.Simulator(first._scene_of(key), first.contact_tol)
+        first._first_state(first._sims[key], key)
 
 
 def rate(venv: gym.vector.VectorEnv, budget: float, seed: int) -> float:
@@ -71,9 +76,9 @@ def rate(venv: gym.vector.VectorEnv, budget: float, seed: int) -> float:
     return n * steps / (time.perf_counter() - start)
 
 
-def reset_times(env_id: str, resets: int) -> list[float]:
+def reset_times(env_id: str, resets: int, pool: int = POOL) -> list[float]:
     """Seconds per ``reset()`` of a single env with a prepared shape pool."""
-    venv = make(env_id, 1)
+    venv = make(env_id, 1, pool=pool)
     env = venv.envs[0]
     env.reset(seed=0)
     out = []
@@ -84,12 +89,12 @@ def reset_times(env_id: str, resets: int) -> list[float]:
     return out
 
 
-def step_parts(env_id: str, n: int, steps: int) -> dict[str, float]:
+def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, float]:
     """Where a batched step's time goes: the compiled call, Python taking steps over, resets
     and the rest (gymnasium's API: actions checked, infos built), in seconds per step."""
     import grasp_env.envs.vector as vector
 
-    venv = make(env_id, n, threads=1)
+    venv = make(env_id, n, threads=1, pool=pool)
     rng = np.random.default_rng(0)
     space = venv.single_action_space
     draws = rng.uniform(space.low, space.high, (steps, n, *space.shape)).astype(np.float32)
@@ -124,21 +129,26 @@ def step_parts(env_id: str, n: int, steps: int) -> dict[str, float]:
     return {k: v / steps for k, v in parts.items()} | {"steps Python took over": fallbacks}
 
 
-def run(quick: bool, out: Path) -> None:
+def run(
+    quick: bool, out: Path, *, pool: int = POOL, ids: tuple = IDS, budget: float | None = None
+) -> Path:
+    """Measure and write the page; ``pool``, ``ids`` and ``budget`` (seconds per
+    configuration and round) make a smaller run."""
     headless()
-    budget, rounds = (0.5, 1) if quick else (3.0, 3)
+    rounds = 1 if quick else 3
+    budget = budget or (0.5 if quick else 3.0)
     sizes = (1, 64) if quick else (1, 4, 16, 64, 256)
     threads = sorted({1, numba.config.NUMBA_NUM_THREADS})
     configs = [("CartPole-v1 SyncVectorEnv", n, None) for n in sizes]
     configs += [("CartPole-v1 vector env", n, None) for n in sizes]
-    configs += [(env_id, n, th) for env_id in IDS for n in sizes for th in threads]
+    configs += [(env_id, n, th) for env_id in ids for n in sizes for th in threads]
     envs = {}
     for name, n, th in configs:
         if name.startswith("CartPole"):
             mode = "sync" if "Sync" in name else "vector_entry_point"
             envs[name, n, th] = gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode=mode)
         else:
-            envs[name, n, th] = make(name, n, th)
+            envs[name, n, th] = make(name, n, th, pool)
     rates: dict[tuple, list[float]] = {key: [] for key in envs}
     for r in range(rounds):
         keys = list(envs)
@@ -175,11 +185,13 @@ def run(quick: bool, out: Path) -> None:
         "",
     ]
     for env_id, baseline, least in (*TARGETS, MOONSHOT):
+        if env_id not in ids:
+            continue
         ratio = med[env_id, 64, threads_max] / med[baseline, 64, None]
         kind = "moonshot" if (env_id, baseline, least) == MOONSHOT else "target"
         verdict = "met" if ratio >= least else "not met"
         lines.append(f"- {kind}: {env_id} >= {least}x {baseline}: {ratio:.2f}x ({verdict})")
-    resets = {env_id: reset_times(env_id, 20 if quick else 200) for env_id in IDS}
+    resets = {env_id: reset_times(env_id, 20 if quick else 200, pool) for env_id in ids}
     lines += [
         "",
         "## Resets (a single env, shape pool prepared)",
@@ -195,14 +207,14 @@ def run(quick: bool, out: Path) -> None:
         "## Where a batched step's time goes (64 envs, one thread, per step of all 64)",
         "",
     ]
-    for env_id in IDS:
-        parts = step_parts(env_id, 64, 50 if quick else 400)
+    for env_id in ids:
+        parts = step_parts(env_id, 64, 50 if quick else 400, pool)
         cells = ", ".join(
             f"{k} {v:,}" if isinstance(v, int) else f"{k} {1e3 * v:.3f} ms"
             for k, v in parts.items()
         )
         lines.append(f"- {env_id}: {cells}")
-    write(out, "Batched env throughput", lines)
+    return write(out, "Batched env throughput", lines)
 
 
 def main(argv: list[str] | None = None) -> int:

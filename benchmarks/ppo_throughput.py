@@ -1,12 +1,15 @@
 """PPO training throughput on FrictionlessGrasp-v0 against CartPole-v1, in the same run.
 
-Trains the same PPO settings (a ``configs/ppo.yml`` entry's: n_envs, n_steps, batch size,
-epochs, network, VecNormalize; no evaluation, checkpoints or progress bar; one torch thread)
-on our env and on CartPole-v1, with each vector-env class (SubprocVecEnv, DummyVecEnv). Both
-models are built and warmed up first, then trained in alternating rounds of a fixed number of
-env steps (the order rotated each round), so that a change in the machine's load touches both
-sides alike; the page gives env steps/s of ``PPO.learn`` per side (median over rounds) and
-the median and range of the per-round ratios.
+Trains the same PPO settings (a config entry's: n_envs, n_steps, batch size, epochs,
+network, VecNormalize; no evaluation, checkpoints or progress bar; one torch thread) on our
+env and on CartPole-v1: a ``configs/ppo.yml`` entry with each of SB3's vector-env classes
+(SubprocVecEnv, DummyVecEnv) on both sides, and the lifting task's large-batch entry
+(``configs/ppo_batched.yml``) on the batched env (``agents.batched``) against CartPole-v1 in
+a DummyVecEnv of as many envs. Both models are built and warmed up first, then trained in
+alternating rounds of a fixed number of env steps (the order rotated each round), so that a
+change in the machine's load touches both sides alike; the page gives env steps/s of
+``PPO.learn`` per side (median over rounds) and the median and range of the per-round
+ratios.
 
 Usage: ``python -m benchmarks.ppo_throughput [--quick] [--rounds N] [--entry fig13_fingers]``
 """
@@ -23,6 +26,8 @@ from benchmarks.common import OUT, REPO, headless, table, write
 from grasp_env.cli import positive_int
 
 VEC_ENVS = ("dummy", "subproc")
+#: Shape pool of the batched lifting entry here, made before timing.
+POOL = 256
 ROUNDS = 5
 
 
@@ -34,8 +39,11 @@ def warmed_model(entry: dict, vec_env: str, seed: int = 0):
     from stable_baselines3.common.vec_env import VecNormalize
 
     from agents.train_ppo import make_vec_env, normalize_kwargs, ppo_kwargs
+    from benchmarks.batched import prepare_pool
 
     venv = make_vec_env(entry, int(entry.get("n_envs", 1)), seed, vec_env)
+    if vec_env == "batched":
+        prepare_pool(venv.venv.venv)  # VecMonitor, then the SB3 adapter
     norm = normalize_kwargs(entry)
     if norm is not None:
         venv = VecNormalize(venv, **norm)
@@ -53,9 +61,11 @@ def steps_per_second(model, steps: int) -> float:
     return (model.num_timesteps - before) / (time.perf_counter() - start)
 
 
-def compare(entry: dict, cartpole: dict, vec_env: str, steps: tuple[int, int], rounds: int):
+def compare(
+    entry: dict, cartpole: dict, vec_envs: tuple[str, str], steps: tuple[int, int], rounds: int
+):
     """Per-round steps/s of our env's and CartPole's PPO, trained in alternating rounds."""
-    models = (warmed_model(entry, vec_env), warmed_model(cartpole, vec_env))
+    models = (warmed_model(entry, vec_envs[0]), warmed_model(cartpole, vec_envs[1]))
     rates: tuple[list, list] = ([], [])
     for r in range(rounds):
         for side in (0, 1) if r % 2 == 0 else (1, 0):
@@ -78,37 +88,44 @@ def run(
 
     headless()
     torch.set_num_threads(1)
-    entry = get_entry(load_config(REPO / "configs" / "ppo.yml"), entry_name)
     rounds = rounds or (1 if quick else ROUNDS)
-    rollout = int(entry.get("n_envs", 1)) * int(entry["n_steps"])
-    steps = (rollout * (1 if quick else 4), rollout * (2 if quick else 6))
-    cartpole = {**entry, "env_id": "CartPole-v1", "env_kwargs": {}, "env_wrapper": None}
-    rows = []
+    cases = []  # (label, our entry, our vec env, CartPole's vec env)
+    entry = get_entry(load_config(REPO / "configs" / "ppo.yml"), entry_name)
     for vec_env in VEC_ENVS:
-        ours, theirs = compare(entry, cartpole, vec_env, steps, rounds)
+        cases.append((f"`{entry_name}`, {vec_env}", entry, vec_env, vec_env))
+    lift = get_entry(load_config(REPO / "configs" / "ppo_batched.yml"), "FrictionlessGraspLift-v0")
+    # a smaller pool, made before timing: steady-state training, whatever the pool's size
+    lift = {**lift, "env_kwargs": {**lift["env_kwargs"], "shape_pool": POOL}}
+    cases.append(("lifting, batched (`configs/ppo_batched.yml`)", lift, "batched", "dummy"))
+    rows = []
+    for label, mine, ours_vec, theirs_vec in cases:
+        rollout = int(mine.get("n_envs", 1)) * int(mine["n_steps"])
+        steps = (rollout * (1 if quick else 4), rollout * (2 if quick else 6))
+        cartpole = {**mine, "env_id": "CartPole-v1", "env_kwargs": {}, "env_wrapper": None}
+        ours, theirs = compare(mine, cartpole, (ours_vec, theirs_vec), steps, rounds)
         ratios = [a / b for a, b in zip(ours, theirs, strict=True)]
         load = os.getloadavg()[0]
         ratio = statistics.median(ratios)
-        print(
-            f"{vec_env}: ratio {ratio:.3f} ({min(ratios):.3f}-{max(ratios):.3f}), load {load:.1f}"
-        )
+        print(f"{label}: ratio {ratio:.3f} ({min(ratios):.3f}-{max(ratios):.3f}), load {load:.1f}")
         rows.append([
-            vec_env, f"{statistics.median(ours):.0f}", f"{statistics.median(theirs):.0f}",
-            f"{ratio:.3f}", f"{min(ratios):.3f}-{max(ratios):.3f}", f"{load:.1f}",
+            label, f"{mine['n_envs']} x {mine['n_steps']}, batch {mine['batch_size']}, "
+            f"{mine['n_epochs']} epochs", f"{statistics.median(ours):.0f}",
+            f"{statistics.median(theirs):.0f} ({theirs_vec})", f"{ratio:.3f}",
+            f"{min(ratios):.3f}-{max(ratios):.3f}", f"{load:.1f}",
         ])  # fmt: skip
     header = [
-        "vec env", f"{entry_name} steps/s", "CartPole-v1 steps/s", "ratio (median)",
+        "set-up", "PPO settings", "our env steps/s", "CartPole-v1 steps/s", "ratio (median)",
         "ratio range", "load (1 min)",
     ]  # fmt: skip
     body = [
-        f"PPO settings of `{entry_name}` (configs/ppo.yml): {entry['n_envs']} envs, n_steps "
-        f"{entry['n_steps']}, batch {entry['batch_size']}, {entry['n_epochs']} epochs, "
-        f"{entry['policy_kwargs']}; one torch thread. Each model is warmed up by one untimed "
-        f"rollout and update, then both train in {rounds} alternating rounds of {steps[0]} "
-        f"steps on our env and {steps[1]} on CartPole-v1 (order rotated each round); steps/s "
-        "are medians over rounds of the wall time of `PPO.learn`, the ratio the median (and "
-        "range) of the per-round ratios. `agents.train_ppo` and the zoo train with DummyVecEnv "
-        "unless told otherwise (`--vec-env subproc`).",
+        "PPO settings of a config entry on both sides (envs x n_steps, batch, epochs, the "
+        "entry's network and VecNormalize); one torch thread. Each model is warmed up by one "
+        f"untimed rollout and update, then both train in {rounds} alternating rounds of 4 "
+        "rollouts on our env and 6 on CartPole-v1 (1 and 2 with `--quick`; order rotated "
+        "each round); steps/s are medians over rounds of the wall time of `PPO.learn`, the "
+        "ratio the median (and range) of the per-round ratios. `agents.train_ppo` trains "
+        "on the batched env where an entry has several envs and no wrapper but "
+        "`TrainingInfo`, else with DummyVecEnv (`--vec-env`).",
         "",
         *table(header, rows),
     ]

@@ -111,9 +111,11 @@ class FrictionlessGraspVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ episodes and rows
     def _load(self, i: int) -> None:
-        """Copy sub-env ``i``'s episode into row ``i`` of the batch."""
+        """Copy sub-env ``i``'s episode into row ``i`` of the batch (its model's arrays too:
+        sub-envs of one scene would share them, and their reference counts, across
+        threads)."""
         episode = self.envs[i]._episode
-        self._models[i] = episode.sim.compiled_model
+        self._models[i] = _own_arrays(episode.sim.compiled_model)
         self._consts[i] = episode.consts
         self._write(i, episode)
 
@@ -156,16 +158,42 @@ class FrictionlessGraspVectorEnv(VectorEnv):
                 raise ValueError(
                     f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r}"
                 )
+        kept = [
+            (env._episode, env._np_random, env._np_random_seed,
+             None if env._np_random is None else env._np_random.bit_generator.state)
+            for env in self.envs
+        ]  # fmt: skip
         observations, infos = [], []
-        for i, env in enumerate(self.envs):
-            obs, info = env.reset(seed=seeds[i], options=options)
-            observations.append(obs)
-            infos.append(info)
+        try:
+            for i, env in enumerate(self.envs):
+                obs, info = env.reset(seed=seeds[i], options=options)
+                observations.append(obs)
+                infos.append(info)
+        except Exception:  # a refused reset changes nothing: the sub-envs reset go back
+            for env, (episode, rng, seed_, bits) in zip(self.envs, kept, strict=True):
+                env._episode, env._np_random, env._np_random_seed = episode, rng, seed_
+                if rng is not None:
+                    rng.bit_generator.state = bits
+            raise
         if self._models is None:
-            self._models = typed.List([env._episode.sim.compiled_model for env in self.envs])
+            self._models = typed.List([_own_arrays(env._episode.sim.compiled_model)
+                                       for env in self.envs])  # fmt: skip
         for i in range(self.num_envs):
             self._load(i)
         return np.stack(observations), self._merged(infos)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple:
+        """Each sub-env's attribute ``name``, called with the arguments if callable (as
+        gymnasium's vector envs do), on its episode as the batch holds it."""
+        out = []
+        for i in range(self.num_envs):
+            value = getattr(self.sub_env(i), name)
+            out.append(value(*args, **kwargs) if callable(value) else value)
+        return tuple(out)
+
+    def get_attr(self, name: str) -> tuple:
+        """Each sub-env's attribute ``name``."""
+        return tuple(getattr(self.sub_env(i), name) for i in range(self.num_envs))
 
     def step(self, actions):
         """One step of every sub-env (see the module docstring for the autoreset)."""
@@ -268,3 +296,10 @@ class FrictionlessGraspVectorEnv(VectorEnv):
 
     def __repr__(self) -> str:
         return f"FrictionlessGraspVectorEnv(num_envs={self.num_envs}, threads={self.threads})"
+
+
+def _own_arrays(model):
+    """``model`` with copies of its arrays."""
+    return model._replace(
+        **{k: v.copy() for k, v in model._asdict().items() if isinstance(v, np.ndarray)}
+    )

@@ -31,17 +31,19 @@ def step_batch(
     for j in prange(q.shape[0]):
         i = np.int64(j)  # the list of models takes a signed index
         m = counts[i]
+        # private copies: rows of the stacked arrays are views sharing one reference count,
+        # which every call would change from every thread at once
         state = (q[i].copy(), h[i].copy(), keys[i, :m].copy(), rows[i, :m].copy())
-        kept = (an[i].copy(), ep[i].copy(), obs[i].copy())
+        mine_an, mine_ep, mine_obs = an[i].copy(), ep[i].copy(), obs[i].copy()
+        mine_info = np.zeros(info.shape[1])
         result = step.step_env(
-            models[i], consts[i], settings, state, an[i], ep[i], obs[i], low, high, actions[i],
-            info[i],
+            models[i], consts[i].copy(), settings.copy(), state, mine_an, mine_ep, mine_obs,
+            low.copy(), high.copy(), actions[i].copy(), mine_info,
         )  # fmt: skip
         code, observed, _, _, q_new, h_new, new_keys, new_rows, _ = result
         n = new_keys.shape[0]
         if code == step.OK and n > capacity:
             code = step.TOO_MANY_CONTACTS
-            an[i, :], ep[i, :], obs[i, :] = kept[0], kept[1], kept[2]
         status[i] = code
         if code != step.OK:
             continue
@@ -50,4 +52,8 @@ def step_batch(
         counts[i] = n
         keys[i, :n] = new_keys
         rows[i, :n] = new_rows
+        an[i] = mine_an
+        ep[i] = mine_ep
+        obs[i] = mine_obs
+        info[i] = mine_info
         seen[i] = observed

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from benchmarks import (
+    batched,
     blas_variation,
     memory,
     planner_shapes,
@@ -34,6 +35,16 @@ from benchmarks.__main__ import main as run_suite
         pytest.param(lambda out: profile_step.run(True, out, steps=3, closing=False), id="profile"),
         pytest.param(lambda out: memory.run(True, out, steps=2, repeat=1, workers=2), id="memory"),
         pytest.param(lambda out: step_parts.run(True, out, steps=30), id="step_parts"),
+        pytest.param(
+            lambda out: batched.run(
+                True,
+                out,
+                pool=2,
+                ids=("FrictionlessGrasp-v0", "FrictionlessGraspLift-v0"),
+                budget=0.02,
+            ),
+            id="batched",
+        ),
         pytest.param(
             lambda out: scripted_speedup.run(
                 Path(scripted_speedup.__file__).parent.parent, budget=0.05, rounds=1, out=out

@@ -181,3 +181,20 @@ def test_render_gives_a_frame_per_sub_env() -> None:
     # the sub-env a frame shows is the batch's, not the state it last stepped itself
     assert venv.sub_env(0).state.hand[3] > venv.envs[0].scene.initial_hand[3]
     venv.close()
+
+
+def test_a_refused_reset_changes_no_sub_env() -> None:
+    """A reset refused by one sub-env (here the third's seed) leaves every sub-env as it was:
+    the next steps and the next unseeded reset are a twin's that never saw it."""
+    venv, twin = (gym.make_vec("FrictionlessGraspRandomShapes-v0", num_envs=3) for _ in range(2))
+    for v in (venv, twin):
+        v.reset(seed=7)
+    a = np.ones((3, 5), dtype=np.float32)
+    with pytest.raises(ValueError, match="seed"):
+        venv.reset(seed=[1, 2, -3])
+    with pytest.raises(ValueError, match="seed"):
+        venv.reset(seed=[1, 2])
+    for x, y in zip(venv.step(a)[:4], twin.step(a)[:4], strict=True):
+        np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(venv.reset()[0], twin.reset()[0])
+    assert venv.call("scene")[2].name == twin.get_attr("scene")[2].name
