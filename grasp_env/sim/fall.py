@@ -274,11 +274,23 @@ def nudge(model, q, s, E, v, h0, dh, s_end, solves):
 def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
     """Nudge the hand past the boundary of equilibrium (:func:`nudge`) and let the object
     fall to rest there: ``(s, q, found)``; not found where nothing falls there either (an
-    object wedged at a fold, held by forces that balance it only to their rounding)."""
+    object wedged at a fold, held by forces that balance it only to their rounding), or
+    where the fall finds no way down to a rest the contacts hold (a pinch at a fold: past
+    it the pinching contacts are dependent to tolerance, free to first order along their
+    dependence but blocked there by their curvature, so the object neither stays held nor
+    falls): the object does not get past the boundary, and the hand stops there."""
     s_new, q_new, found = nudge(model, q, s, E, v, h0, dh, s_end, solves)
     if not found:
         return s, q, False
-    q_rest, moved = fall_if_moved(model, q_new, h0 + s_new * dh, s_new, events, solves)
+    h = h0 + s_new * dh
+    logged = len(events)
+    q_rest, moved = fall_if_moved(model, q_new, h, s_new, events, solves)
     if not moved:
         return s, q, False  # wedged at a fold just ahead: no way past it
+    world = place(model, q_rest, h)
+    keys = touching(model, world, contact_sets.empty())
+    if not held(model, world, q_rest[:2], keys, model.ftol, ROUNDING):
+        while len(events) > logged:
+            events.pop()  # the fall that found no rest
+        return s, q, False
     return s_new, q_rest, True
