@@ -38,7 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env
-from agents.train_ppo import MODEL_DIR, load_agent
+from agents.models import MODEL_DIR, load_agent
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.envs.shapes import WIDE_SHAPE_RANGES
@@ -86,7 +86,7 @@ class PolicySpec:
     """A policy to evaluate: ``kind`` is "scripted", "random", "ppo" (with ``model_dir``) or
     "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``); ``wrapper``:
     the wrapper class and arguments of a model that plays beside the planner
-    (``agents.residual.planner_wrapper``)."""
+    (``agents.planner_agents.planner_wrapper``)."""
 
     name: str
     kind: str
@@ -99,7 +99,7 @@ def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
     """The spec of a trained model directory: its training env set-up (palm control, start,
     the wrapper that plays it beside the planner) from its saved config, with the env's
     default reward weights like every other policy."""
-    from agents.residual import planner_wrapper
+    from agents.planner_agents import planner_wrapper
 
     _, _, name, entry = load_agent(model_dir)
     kwargs = {

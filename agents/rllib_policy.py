@@ -14,7 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from agents.train_rllib import CHECKPOINT_DIR, load_config
+from agents.config import load_config
+
+#: The checkpoint's folder inside an ``agents.train_rllib`` run directory.
+CHECKPOINT_DIR = "checkpoint"
 
 
 def load_run(path: str | Path) -> tuple[Path, str, dict[str, Any]]:

@@ -60,10 +60,6 @@ REPLAN_TOL = 1e-4
 #: (round-off of 1e-10 rad in the fingers) change the outcome: square and heavy_square need 5
 #: re-plans, triangle 1-3. Each costs one lifting plan (about a second of CPU).
 MAX_REPLANS = 10
-#: Budget (simulated moves) of the policy's exploratory lifting, run at most once an episode
-#: (the planner's budget). On tall_rectangle the planner's search needs 515-2213 moves (its
-#: seeds 0-2).
-EXPLORE_MOVES = 20000
 #: Finger actions at most to close the fingers onto the object before exploring.
 CLOSE_STEPS = 64
 #: Whole-planner plans kept (per scene) by :class:`ScriptedPolicy` with palm control.
@@ -316,11 +312,11 @@ class ScriptedPolicy:
 
     def _explore(self, state) -> None:
         """With palm control, when no placement lifts the object: the planner's exploratory
-        lifting with palm motion (:mod:`grasp_env.planning.regrasp`) from the env's state, then grip
-        adjustment; at most once an episode (``EXPLORE_MOVES``). The search simulates the very
-        actions the policy will send
-        (``simulate_action``, the env's own step), so the env follows the path exactly, past
-        every tipping bifurcation."""
+        lifting with palm motion (:mod:`grasp_env.planning.regrasp`) from the env's state, then
+        grip adjustment; at most once an episode, with the planner's budget
+        (``grasp_env.planning.EXPLORE_MOVES`` simulated moves). The search simulates the very
+        actions the policy will send (``simulate_action``, the env's own step), so the env
+        follows the path exactly, past every tipping bifurcation."""
         base = self.env.unwrapped
         if self._explored:
             return
@@ -355,7 +351,7 @@ class ScriptedPolicy:
         plan = planning.Plan()
         plan.steps.append(planning.PlanStep("pre-liftoff", state, math.nan, "env state"))
         phase, increments, _ = planning.explore(
-            base.simulator, [(states, increments)], EXPLORE_MOVES, move
+            base.simulator, [(states, increments)], planning.EXPLORE_MOVES, move
         )
         end = plan.add(phase)
         if not plan.success:

@@ -32,14 +32,14 @@ os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # the driver never phones
 import gymnasium as gym
 import yaml
 
-from agents.train_ppo import wrapper_specs
+from agents.config import REPO, load_config, wrapper_specs
+from agents.rllib_policy import CHECKPOINT_DIR
 from grasp_env.cli import nonnegative_int, out_dir_problem, positive_int
 
 if TYPE_CHECKING:
     from ray.rllib.algorithms.algorithm import Algorithm
     from ray.rllib.algorithms.ppo import PPOConfig
 
-REPO = Path(__file__).resolve().parent.parent
 DEFAULT_CONFIG = REPO / "configs" / "rllib_ppo.yml"
 #: PPOConfig methods whose keyword arguments an entry may set, section by section.
 SECTIONS = ("env_runners", "training", "rl_module")
@@ -49,34 +49,15 @@ ENTRY_KEYS = ("env_kwargs", "env_wrapper", "n_timesteps", "normalize_obs")
 COMMAND_LINE_KEYS = ("num_env_runners",)
 #: Episodes over which the success rate is averaged (RLlib's window for episode returns).
 SUCCESS_WINDOW = 100
-#: The checkpoint's folder inside a run directory.
-CHECKPOINT_DIR = "checkpoint"
 
 
 # ---------------------------------------------------------------------- config
-def load_config(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
-    """Read an RLlib config file: ``{env id: entry}``; fails naming the file."""
-    try:
-        config = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise ValueError(f"--config {str(path)!r}: cannot read it ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        problem = " ".join(str(exc).split())
-        raise ValueError(f"--config {str(path)!r}: not valid YAML: {problem}") from None
-    if not isinstance(config, dict) or not config:
-        raise ValueError(f"--config {str(path)!r}: expected a mapping of env ids to entries")
-    return config
-
-
 def get_entry(config: dict[str, dict[str, Any]], env_id: str) -> dict[str, Any]:
-    """The entry of ``env_id``, checked; fails naming the bad key."""
+    """The entry of ``env_id`` in a config that :func:`agents.config.load_config` read,
+    checked; fails naming the bad key."""
     if env_id not in config:
         raise ValueError(f"--env {env_id!r} is not in the config; choose from {sorted(config)}")
     entry = config[env_id]
-    if not isinstance(entry, dict):
-        raise ValueError(f"entry {env_id!r} must be a mapping, got {entry!r}")
-    if not isinstance(entry.get("env_kwargs") or {}, dict):
-        raise ValueError(f"entry {env_id!r}: env_kwargs must be a mapping")
     unknown = set(entry) - set(ENTRY_KEYS) - set(SECTIONS)
     if unknown:
         raise ValueError(

@@ -1,4 +1,5 @@
-"""agents.handover: the planner where its lifting works, the agent where it gets stuck."""
+"""agents.planner_agents.PlannerHandover: the planner where its lifting works, the agent
+where it gets stuck."""
 
 from __future__ import annotations
 
@@ -18,8 +19,8 @@ import pytest
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents import train_ppo
 from agents.evaluate import LIFT_KWARGS, PolicySpec, make_env
-from agents.handover import PlannerHandover
-from agents.residual import planner_wrapper
+from agents.models import shipped_name
+from agents.planner_agents import PlannerHandover, planner_wrapper
 from agents.scripted import ScriptedPolicy
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -128,12 +129,11 @@ def test_bad_input_is_named_and_the_env_stays_usable():
 
 
 def test_the_handover_config_names_the_wrapper_and_evaluation_plays_it():
-    env_id, entry = train_ppo.prepare(
-        "FrictionlessGraspLift-v0", ROOT / "configs" / "ppo_handover.yml"
-    )
+    conf = ROOT / "configs" / "ppo_handover.yml"
+    entry = train_ppo.prepare("FrictionlessGraspLift-v0", conf)
     assert planner_wrapper(entry) == (PlannerHandover, {"redraw": False})
-    with pytest.raises(ValueError, match="no shipped hand-over model"):
-        train_ppo.shipped_name(env_id, entry)
+    with pytest.raises(ValueError, match=r"no shipped model of configs/ppo_handover\.yml"):
+        shipped_name(conf, "FrictionlessGraspLift-v0")
     spec = PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, planner_wrapper(entry))
     env = make_env(spec, LIFT_KWARGS, 200)
     assert isinstance(env, PlannerHandover) and not env.redraw

@@ -1,4 +1,5 @@
-"""agents.residual: a correction added to the scripted planner's actions."""
+"""agents.planner_agents: residual and grip agents, a correction added to the scripted
+planner's actions."""
 
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ import pytest
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents import train_ppo
 from agents.evaluate import LIFT_KWARGS, PolicySpec, make_env
-from agents.residual import PlannerResidual, planner_wrapper
+from agents.models import shipped_name
+from agents.planner_agents import PlannerGrip, PlannerResidual, planner_wrapper
 from agents.scripted import ScriptedPolicy
 from grasp_env.errors import WorkLimitError
 from grasp_env.mechanics.closure import grip_objective, is_form_closure
@@ -197,23 +199,22 @@ def test_a_bad_correction_is_named_and_the_env_stays_usable(bad):
 
 
 def test_the_residual_config_names_the_wrapper_and_evaluation_plays_it():
-    env_id, entry = train_ppo.prepare(
-        "FrictionlessGraspLift-v0", ROOT / "configs" / "ppo_residual.yml"
-    )
+    env_id, conf = "FrictionlessGraspLift-v0", ROOT / "configs" / "ppo_residual.yml"
+    entry = train_ppo.prepare(env_id, conf)
     assert planner_wrapper(entry) == (PlannerResidual, {"scale": 0.25, "redraw": False})
-    _, plain = train_ppo.prepare("FrictionlessGraspLift-v0", ROOT / "configs" / "ppo.yml")
+    plain = train_ppo.prepare(env_id, ROOT / "configs" / "ppo.yml")
     assert planner_wrapper(plain) is None
-    assert train_ppo.shipped_name(env_id, entry) == "lift_residual"
-    assert train_ppo.shipped_name(env_id, plain) == "lift_palm"
-    with pytest.raises(ValueError, match="no shipped residual model for 'FrictionlessGrasp-v0'"):
-        train_ppo.shipped_name("FrictionlessGrasp-v0", entry)
+    assert shipped_name(conf, env_id) == "lift_residual"
+    assert shipped_name("configs/ppo.yml", env_id) == "lift_palm"
+    with pytest.raises(ValueError, match=r"no shipped model of configs/ppo_residual\.yml for 'F"):
+        shipped_name(conf, "FrictionlessGrasp-v0")
     spec = PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, planner_wrapper(entry))
     env = make_env(spec, LIFT_KWARGS, 200)
     assert isinstance(env, PlannerResidual) and not env.redraw and env.policy.fallbacks
 
 
 @pytest.mark.parametrize("seed", [LIFTS, STUCK])
-def test_after_plan_the_correction_waits_for_the_planner_to_finish(seed):
+def test_the_grip_agents_correction_waits_for_the_planner_to_finish(seed):
     planner = _lift_env()
     obs, info = planner.reset(seed=seed)
     policy = ScriptedPolicy(planner)
@@ -226,7 +227,7 @@ def test_after_plan_the_correction_waits_for_the_planner_to_finish(seed):
     planned.pop()  # the first zero action: the plan is done
     assert len(planned) > 10
     sent = _Sent(_lift_env())
-    env = PlannerResidual(sent, after_plan=True)
+    env = PlannerGrip(sent)
     env.reset(seed=seed)
     correction = np.full(5, 0.5, np.float32)
     for _ in range(len(planned) + 3):
@@ -263,7 +264,7 @@ def test_a_planning_failure_is_redrawn_in_training_and_raised_otherwise(monkeypa
 
 def test_a_failed_replan_in_training_leaves_the_correction_in_charge(monkeypatch):
     sent = _Sent(_lift_env())
-    env = PlannerResidual(sent, redraw=True, after_plan=True)
+    env = PlannerGrip(sent, redraw=True)
     env.reset(seed=LIFTS)
 
     def act(obs=None):
@@ -284,7 +285,7 @@ def test_a_failed_replan_in_training_leaves_the_correction_in_charge(monkeypatch
 
 def test_a_palm_only_correction_after_the_plan_turns_the_grasp_as_one_body():
     sent = _Sent(_lift_env())
-    env = PlannerResidual(sent, scale=1.0, after_plan=True, palm_only=True)
+    env = PlannerGrip(sent, scale=1.0, palm_only=True)
     assert env.action_space.shape == (3,)
     obs, _ = env.reset(seed=LIFTS)
     turn = np.array([0.0, 0.0, 1.0], np.float32)
@@ -321,7 +322,7 @@ def _grip_W(state) -> float:
 
 def test_last_step_observes_the_action_sent_and_the_grip_before_it():
     sent = _Sent(_lift_env())
-    env = PlannerResidual(sent, scale=1.0, after_plan=True, palm_only=True, last_step=True)
+    env = PlannerGrip(sent, scale=1.0, palm_only=True, last_step=True)
     assert env.observation_space.shape[0] == env.env.observation_space.shape[0] + 11
     obs, _ = env.reset(seed=LIFTS)
     assert not obs[-6:-1].any()
@@ -336,14 +337,14 @@ def test_last_step_observes_the_action_sent_and_the_grip_before_it():
 
 
 def test_the_grip_config_plays_after_the_plan_and_ships_apart_from_the_residual():
-    env_id, entry = train_ppo.prepare("FrictionlessGraspLift-v0", ROOT / "configs" / "ppo_grip.yml")
+    env_id, conf = "FrictionlessGraspLift-v0", ROOT / "configs" / "ppo_grip.yml"
+    entry = train_ppo.prepare(env_id, conf)
     wrapper = planner_wrapper(entry)
     assert wrapper == (
-        PlannerResidual,
+        PlannerGrip,
         {
             "scale": 1.0,
             "redraw": False,
-            "after_plan": True,
             "palm_only": True,
             "last_step": True,
             "grip_shaping": 50.0,
@@ -351,7 +352,7 @@ def test_the_grip_config_plays_after_the_plan_and_ships_apart_from_the_residual(
         },
     )
     assert entry["env_kwargs"]["reward_lift_weight"] == 0.0
-    assert train_ppo.shipped_name(env_id, entry) == "lift_grip"  # not lift_residual
+    assert shipped_name(conf, env_id) == "lift_grip"  # not lift_residual
     env = make_env(
         PolicySpec("ppo_x", "ppo", {"palm_control": True}, None, wrapper), LIFT_KWARGS, 200
     )
@@ -360,7 +361,7 @@ def test_the_grip_config_plays_after_the_plan_and_ships_apart_from_the_residual(
 
 def test_grip_shaping_credits_each_acting_step_with_the_fall_of_the_grip():
     inner = _Rewards(_lift_env())
-    env = PlannerResidual(inner, scale=1.0, after_plan=True, palm_only=True, grip_shaping=50.0)
+    env = PlannerGrip(inner, scale=1.0, palm_only=True, grip_shaping=50.0)
     obs, _ = env.reset(seed=LIFTS)
     acted, shapings = 0, []
     for t in range(80):
@@ -374,13 +375,11 @@ def test_grip_shaping_credits_each_acting_step_with_the_fall_of_the_grip():
     assert acted > 20 and max(map(abs, shapings)) > 1e-3  # the turns changed the grip
     for bad in (-1.0, math.nan, True, "1"):
         with pytest.raises(ValueError, match="grip_shaping must be a finite number >= 0"):
-            PlannerResidual(_lift_env(), grip_shaping=bad)
+            PlannerGrip(_lift_env(), grip_shaping=bad)
 
 
-def _probing_env() -> PlannerResidual:
-    return PlannerResidual(
-        _lift_env(), scale=1.0, after_plan=True, palm_only=True, probe_turns=True
-    )
+def _probing_env() -> PlannerGrip:
+    return PlannerGrip(_lift_env(), scale=1.0, palm_only=True, probe_turns=True)
 
 
 def test_turn_probes_observe_what_a_full_turn_each_way_then_does():

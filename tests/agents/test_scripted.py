@@ -20,7 +20,8 @@ from image_checks import ink_runs
 
 import grasp_env
 from agents.scripted import EXIT_FAILED, EXIT_NOT_TIPPABLE, ScriptedPolicy, main
-from grasp_env.envs.shapes import hand_setup, scene_to_dict
+from grasp_env.envs.shapes import scene_to_dict
+from grasp_env.planning import centred_hand
 
 ROOT = Path(__file__).resolve().parents[2]
 TIPPABLE = [s for s in grasp_env.bundled_scenes() if s != "flat_trapezoid"]
@@ -250,7 +251,7 @@ def test_cli_exits_1_with_the_reason_when_a_tippable_object_is_not_lifted(tmp_pa
         [[-0.05, 0.0], [0.05, 0.0], [0.15, 0.02], [0.12, 0.04], [-0.12, 0.04], [-0.15, 0.02]]
     )
     d["object"] = {"vertices": v.tolist(), "mass": 0.2}
-    d["palm"]["pose"] = hand_setup(base, v)[:3].tolist()
+    d["palm"]["pose"] = centred_hand(base, v)[:3].tolist()
     path = tmp_path / "flat.yaml"
     path.write_text(yaml.safe_dump(d))
     assert main(["--scene", str(path), "--out", str(tmp_path / "out")]) == EXIT_FAILED

@@ -19,7 +19,8 @@ import yaml
 
 pytest.importorskip("rl_zoo3")
 
-from agents import train_ppo as tp
+from agents.models import load_agent
+from agents.wrappers import ApproachShaping, TrainingInfo
 from grasp_env.envs import ENV_KWARGS
 
 REPO = Path(__file__).resolve().parents[2]
@@ -46,8 +47,8 @@ def test_zoo_reads_the_entry_of_each_id(env_id, tmp_path):
     env = gym.make(env_id, **manager.env_kwargs)
     if wrapper is not None:
         env = wrapper(env)
-    assert isinstance(env, tp.TrainingInfo)  # last, so that the shaping sees the whole info
-    assert isinstance(env.env, tp.ApproachShaping) == (env_id == "FrictionlessGraspRandomShapes-v0")
+    assert isinstance(env, TrainingInfo)  # last, so that the shaping sees the whole info
+    assert isinstance(env.env, ApproachShaping) == (env_id == "FrictionlessGraspRandomShapes-v0")
     env.close()
 
 
@@ -81,7 +82,7 @@ def test_zoo_trains_each_id_from_the_readme_command(env_id, tmp_path):
     assert (run / f"{env_id}.zip").is_file() and (run / env_id / "vecnormalize.pkl").is_file()
     assert "ep_reward_lift_mean" in done.stdout  # RewardTermsCallback, named in the config
 
-    model, norm, name, entry = tp.load_agent(run)
+    model, norm, name, entry = load_agent(run)
     assert name == f"{env_id}_1" and entry["env_id"] == env_id and norm is not None
     assert model.num_timesteps == 2048
     raw = yaml.safe_load(CONFIG.read_text())[env_id]
