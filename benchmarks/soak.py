@@ -282,22 +282,17 @@ def random_stress_scene(
 # ---------------------------------------------------------------------------------------
 
 
-def random_action(rng: np.random.Generator) -> np.ndarray:
-    """A random palm-control action, biased to closing the fingers (``a0, a1`` uniform in
-    ``[-0.4, 1]``, the palm's in ``[-1, 1]``) so that grasps, lifts and jams happen."""
+def random_action(rng: np.random.Generator, size: int = 5) -> np.ndarray:
+    """A random action, biased to closing the fingers (``a0, a1`` uniform in ``[-0.4, 1]``,
+    the palm's, with palm control, in ``[-1, 1]``) so that grasps, lifts and jams happen."""
     a = rng.uniform(-1.0, 1.0, 5)
     a[:2] = rng.uniform(-0.4, 1.0, 2)
-    return a.astype(np.float32)
+    return a[:size].astype(np.float32)
 
 
-def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
-    """Run ``steps`` random-action env steps on shape ``index``; return its record."""
-    import gymnasium as gym
-
-    from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
-
-    rng = np.random.default_rng([seed, index])
-    rec: dict[str, Any] = {
+def new_record(index: int) -> dict[str, Any]:
+    """An empty record of a shape's steps (:func:`run_env` fills it)."""
+    return {
         "index": index,
         "steps": 0,
         "episodes": 0,
@@ -312,6 +307,15 @@ def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
         "examples": [],
         "time": 0.0,
     }
+
+
+def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
+    """Run ``steps`` random-action env steps on shape ``index``; return its record."""
+
+    from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+
+    rng = np.random.default_rng([seed, index])
+    rec = new_record(index)
     t0 = time.perf_counter()
     try:
         d = random_stress_scene(rng)
@@ -323,7 +327,18 @@ def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
         rec["examples"].append(f"env construction: {exc!r}")
         rec["time"] = time.perf_counter() - t0
         return rec
-    tol = env.contact_tol * env.unwrapped.scenes[0].palm.width
+    run_env(env, rng, steps, rec)
+    rec["time"] = time.perf_counter() - t0
+    return rec
+
+
+def run_env(env, rng: np.random.Generator, steps: int, rec: dict[str, Any]) -> None:
+    """``steps`` random-action steps of ``env`` (a reset with a seed from ``rng`` at the
+    start, on every end and after 200 steps), every state checked by ``check_state`` and
+    every observation against its space; the counts and worst figures go into ``rec``."""
+    import gymnasium as gym
+
+    tol = env.unwrapped.contact_tol * env.unwrapped.scenes[0].palm.width
     space: gym.spaces.Box = env.observation_space
     need_reset = True
     while rec["steps"] < steps:
@@ -333,7 +348,7 @@ def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
                 rec["episodes"] += 1
                 need_reset, ep_steps = False, 0
             else:
-                obs, _, term, trunc, info = env.step(random_action(rng))
+                obs, _, term, trunc, info = env.step(random_action(rng, env.action_space.shape[0]))
                 rec["steps"] += 1
                 ep_steps += 1
                 need_reset = term or trunc or ep_steps >= 200
@@ -364,8 +379,6 @@ def soak_shape(seed: int, index: int, steps: int) -> dict[str, Any]:
             if len(rec["examples"]) < 3:
                 rec["examples"].append(f"step {rec['steps']}: {chk.violations[:3]}")
     env.close()
-    rec["time"] = time.perf_counter() - t0
-    return rec
 
 
 def _work(job: tuple[int, int, int]) -> dict[str, Any]:

@@ -12,6 +12,7 @@ import pytest
 from benchmarks import (
     batched,
     blas_variation,
+    edge_probe,
     memory,
     planner_shapes,
     profile_step,
@@ -35,6 +36,7 @@ from benchmarks.__main__ import main as run_suite
         pytest.param(lambda out: profile_step.run(True, out, steps=3, closing=False), id="profile"),
         pytest.param(lambda out: memory.run(True, out, steps=2, repeat=1, workers=2), id="memory"),
         pytest.param(lambda out: step_parts.run(True, out, steps=30), id="step_parts"),
+        pytest.param(lambda out: edge_probe.run(1, 3, 0, out), id="edge_probe"),
         pytest.param(
             lambda out: batched.run(
                 True,
