@@ -77,6 +77,12 @@ def read_yaml(path: str | os.PathLike, what: str = "config file") -> Any:
 def load_config(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
     """Read a hyperparameter file: ``{env id: entry}``, each ``extends`` resolved. Fails with a
     one-line ``ValueError`` naming the file and the bad part."""
+    return _load(Path(path), ())
+
+
+def _load(path: Path, extending: tuple[Path, ...]) -> dict[str, dict[str, Any]]:
+    """:func:`load_config` of ``path``, read for the files ``extending`` (which it may not
+    extend in turn)."""
     config = read_yaml(path)
     if not isinstance(config, dict) or not config:
         raise ValueError(f"config file {str(path)!r}: expected a mapping of env ids to entries")
@@ -85,23 +91,17 @@ def load_config(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
         if not isinstance(entry, dict):
             raise ValueError(f"{path}: entry {key!r} must be a mapping, got {entry!r}")
         if EXTENDS in entry:
-            entry = _extended(Path(path), str(key), entry)
+            base_path = path.parent / str(entry[EXTENDS])
+            if base_path.resolve() in {p.resolve() for p in (*extending, path)}:
+                raise ValueError(f"{path}: entry {key!r} extends {str(base_path)!r}, a cycle")
+            base = _load(base_path, (*extending, path))
+            if key not in base:
+                raise ValueError(f"{path}: entry {key!r} extends {str(base_path)!r}, without it")
+            entry = {**base[key], **{k: v for k, v in entry.items() if k != EXTENDS}}
         if not isinstance(entry.get("env_kwargs") or {}, dict):
             raise ValueError(f"{path}: entry {key!r}: env_kwargs must be a mapping")
         entries[str(key)] = entry
     return entries
-
-
-def _extended(path: Path, key: str, entry: dict[str, Any]) -> dict[str, Any]:
-    """``entry`` over the entry of ``key`` in the file it extends."""
-    own = {k: v for k, v in entry.items() if k != EXTENDS}
-    base_path = path.parent / str(entry[EXTENDS])
-    if base_path.resolve() == path.resolve():
-        raise ValueError(f"{path}: entry {key!r} extends its own file")
-    base = load_config(base_path)
-    if key not in base:
-        raise ValueError(f"{path}: entry {key!r} extends {str(base_path)!r}, which has no {key!r}")
-    return {**base[key], **own}
 
 
 def get_entry(config: dict[str, dict[str, Any]], env_id: str) -> dict[str, Any]:
@@ -178,9 +178,9 @@ def wrapper_specs(entry: dict[str, Any]) -> list[tuple[type[gym.Wrapper], dict]]
     items = value if isinstance(value, list) else [] if value is None else [value]
     specs = []
     for item in items:
-        name, kwargs = next(iter(item.items())) if isinstance(item, dict) else (item, {})
         if isinstance(item, dict) and len(item) != 1:
             raise ValueError(f"env_wrapper {item!r}: expected one {{path: kwargs}} per item")
+        name, kwargs = next(iter(item.items())) if isinstance(item, dict) else (item, {})
         if not isinstance(kwargs or {}, dict):
             raise ValueError(f"env_wrapper {name!r}: its arguments must be a mapping")
         if not isinstance(name, str) or "." not in name:

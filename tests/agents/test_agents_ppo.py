@@ -99,14 +99,16 @@ def test_entries_extend_the_lifting_entry():
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("x-v0:\n  extends: c.yml\n", "extends its own file"),
-        ("x-v0:\n  extends: ppo.yml\n", "which has no 'x-v0'"),
+        ("x-v0:\n  extends: c.yml\n", "c.yml', a cycle"),
+        ("x-v0:\n  extends: d.yml\n", "c.yml', a cycle"),
+        ("x-v0:\n  extends: ppo.yml\n", "ppo.yml', without it"),
         ("x-v0:\n  extends: none.yml\n", "none.yml': cannot read it"),
     ],
-    ids=["itself", "no-such-entry", "no-such-file"],
+    ids=["itself", "through-another", "no-such-entry", "no-such-file"],
 )
 def test_a_bad_extends_is_named(text, message, tmp_path):
     shutil.copy(CONFIG, tmp_path / "ppo.yml")
+    (tmp_path / "d.yml").write_text("x-v0:\n  extends: c.yml\n")
     (tmp_path / "c.yml").write_text(text)
     with pytest.raises(ValueError, match=message):
         cf.load_config(tmp_path / "c.yml")
