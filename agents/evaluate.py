@@ -1,7 +1,7 @@
 """Compare the scripted planner, trained PPO agents and a random policy on fixed seeds.
 
     python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
-        [--out DIR] [--workers 2]
+        [--out DIR] [--workers 2] [--results-page docs/results.md]
 
 Suites: ``bundled`` (every bundled scene from its start, ``--bundled-episodes`` seeds each),
 ``heldout`` (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds
@@ -13,17 +13,23 @@ fig13 episodes from the env's ``"random"`` start, the pre-liftoff placement pert
 policy meets the same scenes, starts and seeds. Writes
 ``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
 printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
-into ``--out``. See ``docs/training.md`` for the metrics.
+into ``--out``; with ``--results-page PATH`` also the results page (``docs/results.md``: the
+tables with the date, the commit and the command), which is written nowhere else. Every row
+says what its policy calls at test time (``test_time``: ``agents.models.TEST_TIMES``). See
+``docs/training.md`` for the metrics.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import datetime
 import functools
 import itertools
 import math
 import os
+import shlex
+import subprocess
 import sys
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -38,7 +44,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env
-from agents.models import MODEL_DIR, load_agent
+from agents.models import MODEL_DIR, TEST_TIMES, load_agent
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.envs.shapes import WIDE_SHAPE_RANGES
@@ -78,6 +84,20 @@ RANDOM_KWARGS = {"palm_control": False, "start": "scene"}
 SUITE_KEYS = ("scene", "shape_randomizer", "start", "time_limit", "shape_pool")
 GIF_SCENE, GIF_SIZE, GIF_EVERY = "fig13", (320, 240), 2
 BOOTSTRAP_SAMPLES = 2000
+#: What each kind of policy calls at test time (``agents.models.TEST_TIMES``); a ``"ppo"``
+#: model's is its training entry's (``agents.models.entry_test_time``). An RLlib checkpoint
+#: plays on its env id alone.
+KIND_TEST_TIMES = {"scripted": "planner", "random": "network", "rllib": "network"}
+#: The suites as the summary lists them (``fig13`` is the ``bundled`` suite's fig13
+#: episodes), with what each one is, for the results page.
+SUITE_TITLES = {
+    GIF_SCENE: "fig13, the paper's scene from its start",
+    "bundled": "every bundled scene from its start",
+    "heldout": "held-out random shapes, the hand where the scene puts it",
+    "wide": "held-out random shapes in the wide ranges, the hand where the scene puts it",
+    "lift": "held-out random shapes, the hand at the planner's pre-liftoff placement",
+    "perturbed": "fig13 from perturbed starts",
+}
 
 
 # ---------------------------------------------------------------------- policies
@@ -86,13 +106,30 @@ class PolicySpec:
     """A policy to evaluate: ``kind`` is "scripted", "random", "ppo" (with ``model_dir``) or
     "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``); ``wrapper``:
     the wrapper class and arguments of a model that plays beside the planner
-    (``agents.planner_agents.planner_wrapper``)."""
+    (``agents.planner_agents.planner_wrapper``); ``test_time``: what the policy calls at test
+    time (``agents.models.TEST_TIMES``; by default its kind's, ``KIND_TEST_TIMES``, and for
+    a "ppo" model its wrapper's declaration, ``PlannerAgent.test_time_of``, or ``"network"``
+    without one: as ``agents.models.entry_test_time`` reads its entry)."""
 
     name: str
     kind: str
     env_kwargs: dict = field(default_factory=dict)
     model_dir: str | None = None
     wrapper: tuple[type[gym.Wrapper], dict] | None = None
+    test_time: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.test_time:
+            if self.kind == "ppo":  # the network, and what the wrapper it plays through calls
+                cls, kwargs = self.wrapper or (None, {})
+                test_time = "network" if cls is None else cls.test_time_of(kwargs)
+            elif self.kind in KIND_TEST_TIMES:
+                test_time = KIND_TEST_TIMES[self.kind]
+            else:
+                raise ValueError(f"policy {self.name!r}: a {self.kind!r} policy needs test_time")
+            object.__setattr__(self, "test_time", test_time)
+        if self.test_time not in TEST_TIMES:
+            raise ValueError(f"policy {self.name!r}: test_time must be one of {TEST_TIMES}")
 
 
 def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
@@ -264,16 +301,23 @@ def bootstrap_mean(values: list[float], seed: int = 0) -> tuple[float, float]:
     return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
 
 
-def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
-    """One row per (suite, policy): rates with Wilson CIs, means with bootstrap CIs.
+def summarize(
+    episodes: list[Episode], test_times: dict[str, str] | None = None
+) -> list[dict[str, Any]]:
+    """One row per (suite, policy): rates with Wilson CIs, means with bootstrap CIs, and
+    ``test_time``, what the policy calls at test time (``test_times``, by policy name; "" for
+    a policy it does not name).
 
-    Suites: the paper's scene alone (``fig13``), all bundled scenes, the held-out shapes in the
-    default and the wide ranges, fig13 from perturbed starts.
+    Suites: the paper's scene alone (``fig13``), all bundled scenes (left out where fig13 is
+    the only one: its rows would repeat fig13's), the held-out shapes in the default and the
+    wide ranges and from the planner's placement, fig13 from perturbed starts.
     """
     rows = []
+    test_times = test_times or {}
+    bundled = [e for e in episodes if e.suite == "bundled"]
     groups = {
-        GIF_SCENE: [e for e in episodes if e.suite == "bundled" and e.scene == GIF_SCENE],
-        "bundled": [e for e in episodes if e.suite == "bundled"],
+        GIF_SCENE: [e for e in bundled if e.scene == GIF_SCENE],
+        "bundled": bundled if any(e.scene != GIF_SCENE for e in bundled) else [],
         "heldout": [e for e in episodes if e.suite == "heldout"],
         "wide": [e for e in episodes if e.suite == "wide"],
         "lift": [e for e in episodes if e.suite == "lift"],
@@ -295,6 +339,7 @@ def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
             {
                 "suite": suite,
                 "policy": policy,
+                "test_time": test_times.get(policy, ""),
                 "episodes": n,
                 "success_rate": k / n,
                 "success_ci_low": lo,
@@ -316,35 +361,118 @@ def summarize(episodes: list[Episode]) -> list[dict[str, Any]]:
     return rows
 
 
+#: A summary cell with nothing to show (no success to average, no episode that reached closure).
+EMPTY = "n/a"
+#: The summary table's columns: header and alignment row.
+TABLE_HEAD = (
+    "| suite | policy | test time | n | success (95% CI) | y*/W mean ± sd (95% CI) "
+    "| steps to closure (95% CI) | drops | jams | errors |\n"
+    "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
+)
+
+
 def markdown_table(rows: list[dict[str, Any]]) -> str:
-    """The summary as a markdown table."""
+    """The summary as a markdown table (``n/a`` where a mean has no values)."""
 
     def num(x: float, fmt: str = ".2f") -> str:
-        return "-" if math.isnan(x) else format(x, fmt)
+        return format(x, fmt)
 
-    lines = [
-        "| suite | policy | n | success (95% CI) | y*/W mean ± sd (95% CI) "
-        "| steps to closure (95% CI) | drops | jams | errors |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
-    ]
+    lines = [TABLE_HEAD.rstrip("\n")]
     for r in rows:
         success = (
             f"{num(r['success_rate'])} ({num(r['success_ci_low'])}-{num(r['success_ci_high'])})"
         )
-        grip = (
-            f"{num(r['grip_W_mean'])} ± {num(r['grip_W_std'])} "
-            f"({num(r['grip_W_ci_low'])}-{num(r['grip_W_ci_high'])})"
-        )
-        closure = (
-            f"{num(r['steps_to_closure_mean'], '.1f')} "
-            f"({num(r['steps_to_closure_ci_low'], '.1f')}-"
-            f"{num(r['steps_to_closure_ci_high'], '.1f')})"
-        )
+        grip = EMPTY
+        if not math.isnan(r["grip_W_mean"]):
+            grip = (
+                f"{num(r['grip_W_mean'])} ± {num(r['grip_W_std'])} "
+                f"({num(r['grip_W_ci_low'])}-{num(r['grip_W_ci_high'])})"
+            )
+        closure = EMPTY
+        if not math.isnan(r["steps_to_closure_mean"]):
+            closure = (
+                f"{num(r['steps_to_closure_mean'], '.1f')} "
+                f"({num(r['steps_to_closure_ci_low'], '.1f')}-"
+                f"{num(r['steps_to_closure_ci_high'], '.1f')})"
+            )
         lines.append(
-            f"| {r['suite']} | {r['policy']} | {r['episodes']} | {success} | {grip} | "
-            f"{closure} | {r['drops']} | {r['jams']} | {r['errors']} |"
+            f"| {r['suite']} | {r['policy']} | {r['test_time']} | {r['episodes']} | {success} "
+            f"| {grip} | {closure} | {r['drops']} | {r['jams']} | {r['errors']} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def results_page(rows: list[dict[str, Any]], command: str, date: str, commit: str) -> str:
+    """The results page (``docs/results.md``): one table per suite, the date, the commit and
+    the command that produced it, and which rows are network-only."""
+    network = list(dict.fromkeys(r["policy"] for r in rows if r["test_time"] == "network"))
+    others = {
+        level: list(dict.fromkeys(r["policy"] for r in rows if r["test_time"] == level))
+        for level in TEST_TIMES[1:]
+    }
+    lines = [
+        "# Results",
+        "",
+        "<!-- Generated by agents.evaluate --results-page: run the command below again rather "
+        "than editing this page. -->",
+        "",
+        f"Generated on {date} at commit `{commit}` by:",
+        "",
+        "```bash",
+        command,
+        "```",
+        "",
+        "Every policy meets the same scenes, starts and seeds; success is form closure off the "
+        "support at the episode's last step, with its Wilson 95% interval; y\\*/W (the grip "
+        "objective in object weights) is over the successes, with a bootstrap 95% interval of "
+        "the mean; `n/a` where there is nothing to average. The metrics, suites and policies: "
+        "[training.md](training.md#evaluation).",
+        "",
+        "**Test time** says what a policy calls when it plays: `network`, its network alone "
+        "on the env's observation (`random`: nothing); `planner`, the scripted planner, which "
+        "plans on the exact model of the scene (its fallback searches included); `simulator`, "
+        "also the exact simulator on copies of the env's state beyond the env's own step. "
+        "What a suite's env does for every policy alike (the `lift` suite's start at the "
+        "planner's placement) is not counted.",
+        "",
+        f"Network-only rows: {_names(network)}.",
+    ]
+    for level, names in others.items():
+        if names:
+            lines.append(f"Rows of `{level}` policies: {_names(names)}.")
+    for suite in dict.fromkeys(r["suite"] for r in rows):
+        table = markdown_table([r for r in rows if r["suite"] == suite])
+        lines += ["", f"## `{suite}`: {SUITE_TITLES.get(suite, suite)}", "", table.rstrip("\n")]
+    return "\n".join(lines) + "\n"
+
+
+def _names(names: list[str]) -> str:
+    return ", ".join(f"`{n}`" for n in names) if names else "none"
+
+
+#: The folders whose uncommitted changes the results page notes.
+CODE_DIRS = ("grasp_env", "agents", "configs")
+
+
+def git_commit(repo: Path = MODEL_DIR.parent.parent) -> str:
+    """The checked-out commit (short hash), noting uncommitted changes to the code that
+    decides the numbers (``grasp_env/``, ``agents/``, ``configs/``); ``unknown`` outside git."""
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True, text=True
+        )
+        changed = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", *CODE_DIRS],
+            cwd=repo,
+            capture_output=True,
+            text=True,
+        )
+    except OSError:
+        return "unknown"
+    if commit.returncode != 0:
+        return "unknown"
+    dirty = changed.returncode == 0 and changed.stdout.strip()
+    return commit.stdout.strip() + (" with uncommitted changes" if dirty else "")
 
 
 # ---------------------------------------------------------------------- outputs
@@ -380,8 +508,12 @@ def bar_chart(path: Path, rows: list[dict[str, Any]]) -> None:
         ax.set_ylabel(label)
     axes[0].set_ylim(0, 1.05)
     axes[1].set_title("over successes (lower is better)")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
+    # below both panels, where it covers no bar
+    handles, labels = axes[0].get_legend_handles_labels()
+    ncol = min(len(policies), 4)
+    fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=8, frameon=False)
+    rows_of_legend = math.ceil(len(policies) / ncol)
+    fig.tight_layout(rect=(0, 0.06 * rows_of_legend + 0.02, 1, 1))
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
@@ -451,7 +583,7 @@ def evaluate(
         _one_thread()
         results = _progress(map(_run_job, jobs), len(jobs))
     write_csv(out / "episodes.csv", [asdict(e) for e in results])
-    rows = summarize(results)
+    rows = summarize(results, {spec.name: spec.test_time for spec in specs})
     write_csv(out / "summary.csv", rows)
     table = markdown_table(rows)
     (out / "summary.md").write_text(table)
@@ -489,49 +621,96 @@ def _one_thread() -> None:
 MAX_WORKERS = 4 * (os.cpu_count() or 1)
 
 
+class _HelpFormatter(HelpFormatter):
+    """``--help`` with every option's default, zero counts included (the shared formatter
+    leaves out defaults that compare equal to False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if type(action.default) is int and "%(default)" not in (action.help or ""):
+            return f"{action.help} (default: %(default)s)"
+        return super()._get_help_string(action)
+
+
+def results_page_problem(path: Path) -> str | None:
+    """Why the results page cannot be written at ``path``, or None: checked before any
+    episode runs."""
+    if path.is_dir():
+        return f"{path} is a directory"
+    if not path.parent.is_dir():
+        return f"{path}: its folder {path.parent} does not exist"
+    return None
+
+
 def main(argv: list[str] | None = None) -> None:
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = argparse.ArgumentParser(
         prog="python -m agents.evaluate",
         description="Compare the scripted planner, trained agents and a random policy on the "
         "same scenes and seeds: every bundled scene (suite 'bundled') and held-out random shapes "
-        "(suite 'heldout', seeds training never uses). Writes episodes.csv, summary.csv, "
-        "summary.md (also printed), summary.png and one GIF per policy into --out; "
-        "docs/training.md explains the metrics.",
-        formatter_class=HelpFormatter,
+        "(suite 'heldout', seeds training never uses), with the optional suites 'wide', 'lift' "
+        "and 'perturbed'. Writes episodes.csv, summary.csv, summary.md (also printed), "
+        "summary.png and one GIF per policy into --out, and with --results-page the results "
+        "page; each row's test_time says what its policy calls at test time (network, "
+        "planner or simulator); docs/training.md explains the metrics.",
+        formatter_class=_HelpFormatter,
     )
-    parser.add_argument("--models", nargs="*", help="model directories (default: agents/models/*)")
+    parser.add_argument(
+        "--models",
+        nargs="*",
+        metavar="DIR",
+        help="model directories or zoo run folders (default: agents/models/*; the option alone: "
+        "no PPO model)",
+    )
     parser.add_argument(
         "--rllib-checkpoint",
         nargs="+",
         action="extend",
         default=[],
         metavar="PATH",
-        help="agents.train_rllib run directories or their checkpoint/ (needs ray[rllib])",
+        help="agents.train_rllib run directories or their checkpoint/ (needs ray[rllib]; "
+        "default: none)",
     )
-    parser.add_argument("--episodes", type=positive_int, default=20, help="held-out shapes")
+    parser.add_argument(
+        "--episodes", type=positive_int, default=20, metavar="N", help="held-out shapes"
+    )
     parser.add_argument(
         "--wide-episodes",
         type=nonnegative_int,
         default=0,
-        help="held-out shapes in the randomizer's wide ranges (suite 'wide')",
+        metavar="N",
+        help="held-out shapes in the randomizer's wide ranges, suite 'wide'",
     )
     parser.add_argument(
         "--lift-episodes",
         type=nonnegative_int,
         default=0,
-        help="held-out shapes from the planner's pre-liftoff placement (suite 'lift')",
+        metavar="N",
+        help="held-out shapes from the planner's pre-liftoff placement, suite 'lift'",
     )
     parser.add_argument(
         "--perturbed-episodes",
         type=nonnegative_int,
         default=0,
-        help="fig13 episodes from perturbed starts (start='random', suite 'perturbed')",
+        metavar="N",
+        help="fig13 episodes from perturbed starts (start='random'), suite 'perturbed'",
     )
-    parser.add_argument("--bundled-episodes", type=positive_int, default=1, help="per scene")
     parser.add_argument(
-        "--scene", "--scenes", dest="scenes", nargs="+", help="bundled scenes (default: all)"
+        "--bundled-episodes", type=positive_int, default=1, metavar="N", help="seeds per scene"
     )
-    parser.add_argument("--max-steps", type=positive_int, help="episode length (the env's: 200)")
+    parser.add_argument(
+        "--scene",
+        "--scenes",
+        dest="scenes",
+        nargs="+",
+        metavar="SCENE",
+        help="bundled scenes (default: all)",
+    )
+    parser.add_argument(
+        "--max-steps",
+        type=positive_int,
+        metavar="N",
+        help="episode length (default: the env's time limit, 200)",
+    )
     parser.add_argument(
         "--workers",
         type=positive_int,
@@ -539,7 +718,15 @@ def main(argv: list[str] | None = None) -> None:
         help=f"processes, at most 4 x the CPUs = {MAX_WORKERS}",
     )
     parser.add_argument("--out", default="runs/evaluation", help="output directory")
-    parser.add_argument("--no-scripted", action="store_true", help="leave the planner out")
+    parser.add_argument(
+        "--results-page",
+        metavar="PATH",
+        help="also write the results page there (docs/results.md is the shipped one; "
+        "default: none, no page is written)",
+    )
+    parser.add_argument(
+        "--no-scripted", action="store_true", help="leave the planner out (default: off)"
+    )
     args = parser.parse_args(argv)
     if args.workers > MAX_WORKERS:
         parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
@@ -555,6 +742,8 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(f"--scenes {scene!r} is not a bundled scene; choose from {known}")
     if problem := out_dir_problem(Path(args.out)):
         parser.error(f"--out {problem}")
+    if args.results_page and (problem := results_page_problem(Path(args.results_page))):
+        parser.error(f"--results-page {problem}")
     rows = evaluate(
         specs,
         Path(args.out),
@@ -569,6 +758,12 @@ def main(argv: list[str] | None = None) -> None:
     )
     print(markdown_table(rows), end="")
     print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")
+    if args.results_page:
+        command = shlex.join(["python", "-m", "agents.evaluate", *argv])
+        date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        page = results_page(rows, command, date, git_commit())
+        Path(args.results_page).write_text(page)
+        print(f"wrote {args.results_page}")
 
 
 if __name__ == "__main__":

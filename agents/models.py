@@ -34,6 +34,26 @@ SHIPPED = {
     ("configs/ppo_grip.yml", LIFT_ENV_ID): "lift_grip",
 }
 
+#: What a policy calls at test time, from least to most: ``"network"``, its network alone on
+#: the env's observation (or nothing at all, as a random policy); ``"planner"``, the scripted
+#: planner (``agents.scripted.ScriptedPolicy``, which plans on the exact model of the scene,
+#: its fallback searches included); ``"simulator"``, also the exact simulator on copies of
+#: the env's state, beyond the env's own step (``simulate_action``). What a suite's env does
+#: for every policy alike (e.g. the ``lift`` suite's start at the planner's placement) is
+#: not counted.
+TEST_TIMES = ("network", "planner", "simulator")
+
+
+def entry_test_time(entry: dict[str, Any]) -> str:
+    """What a model of a training entry calls at test time (one of :data:`TEST_TIMES`): what
+    the agent its ``env_wrapper`` names declares (``PlannerAgent.test_time_of``), where it
+    names one that plays beside the planner; else ``"network"`` (the other wrappers shape
+    the reward or thin the info for training only, and no policy plays through them)."""
+    from agents.planner_agents import planner_wrapper
+
+    wrapper = planner_wrapper(entry)
+    return "network" if wrapper is None else wrapper[0].test_time_of(wrapper[1])
+
 
 def shipped_name(conf_file: str | os.PathLike, env_id: str) -> str:
     """The shipped model directory's name of a config file and env id (ValueError where

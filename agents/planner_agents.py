@@ -57,6 +57,19 @@ class PlannerAgent(gym.Wrapper):
         ValueError: an env without palm control.
     """
 
+    #: What an agent of this kind calls at test time beyond its network and the env's own
+    #: step (one of ``agents.models.TEST_TIMES``): the planner, which plans at every reset.
+    test_time = "planner"
+    #: Arguments that, when true, make the agent also call the exact simulator on copies of
+    #: the env's state at test time (test time ``"simulator"``).
+    simulator_options: tuple[str, ...] = ()
+
+    @classmethod
+    def test_time_of(cls, kwargs: dict[str, Any]) -> str:
+        """What an agent of this kind made with ``kwargs`` calls at test time: ``"simulator"``
+        where one of its :attr:`simulator_options` is set, else :attr:`test_time`."""
+        return "simulator" if any(kwargs.get(k) for k in cls.simulator_options) else cls.test_time
+
     def __init__(self, env: gym.Env, redraw: bool, fallbacks: bool) -> None:
         super().__init__(env)
         if not env.unwrapped.palm_control:
@@ -252,6 +265,8 @@ class PlannerGrip(PlannerResidual):
     Raises:
         ValueError: as :class:`PlannerResidual`, and ``grip_shaping`` negative or not finite.
     """
+
+    simulator_options = ("probe_turns",)  # simulate_action on a copy, twice a step
 
     def __init__(
         self,

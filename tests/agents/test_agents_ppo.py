@@ -422,7 +422,7 @@ def test_evaluation_writes_all_outputs(trained, tmp_path, capsys):
         ]
     )
     printed = capsys.readouterr().out
-    assert "| heldout | random | 2 |" in printed and "ppo_tiny" in printed
+    assert "| heldout | random | network | 2 |" in printed and "ppo_tiny" in printed
     for name in ("episodes.csv", "summary.csv", "summary.md", "summary.png"):
         assert (out / name).stat().st_size > 0, name
     for policy in ("ppo_tiny", "random"):

@@ -1,0 +1,196 @@
+"""The evaluation's tables: what each policy calls at test time, the summary's rows and
+cells, the results page and the command's options (no episode of a real policy runs here)."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+import csv
+import math
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from agents import config as cf
+from agents import evaluate as ev
+from agents import models
+from agents.planner_agents import PlannerAgent, PlannerGrip, PlannerHandover, PlannerResidual
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: What every config file's models call at test time, by file (each file's every entry).
+CONFIG_TEST_TIMES = {
+    "ppo.yml": "network",
+    "ppo_batched.yml": "network",
+    "ppo_residual.yml": "planner",
+    "ppo_handover.yml": "planner",
+    "ppo_grip.yml": "simulator",
+}
+#: What every shipped model calls at test time.
+SHIPPED_TEST_TIMES = {
+    "fig13_fingers": "network",
+    "fig13_perturbed": "network",
+    "random_shapes_palm": "network",
+    "lift_palm": "network",
+    "lift_residual": "planner",
+    "lift_grip": "simulator",
+}
+
+
+def test_every_config_file_is_classified():
+    assert sorted(CONFIG_TEST_TIMES) == sorted(p.name for p in (REPO / "configs").glob("ppo*.yml"))
+    assert sorted(SHIPPED_TEST_TIMES) == sorted(p.name for p in models.MODEL_DIR.iterdir())
+
+
+@pytest.mark.parametrize("name", sorted(CONFIG_TEST_TIMES))
+def test_config_entries_declare_what_they_call_at_test_time(name):
+    for env_id in cf.load_config(REPO / "configs" / name):
+        entry = cf.get_entry(cf.load_config(REPO / "configs" / name), env_id)
+        assert models.entry_test_time(entry) == CONFIG_TEST_TIMES[name], (name, env_id)
+
+
+def test_shipped_models_by_their_config_file_and_env_id():
+    """The shipped models' table: each model calls what its config file's entry declares."""
+    for (conf_file, _), name in models.SHIPPED.items():
+        assert SHIPPED_TEST_TIMES[name] == CONFIG_TEST_TIMES[Path(conf_file).name], name
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED_TEST_TIMES))
+def test_shipped_models_specs_carry_their_test_time(name):
+    assert ev.ppo_spec(models.MODEL_DIR / name).test_time == SHIPPED_TEST_TIMES[name]
+
+
+def test_test_time_is_declared_by_the_agent_kind():
+    """Planner agents declare ``planner``; the grip agent's turn probes (``simulate_action``
+    on a copy) make it ``simulator``; the other kinds by the evaluation's table."""
+    for cls in (PlannerResidual, PlannerHandover, PlannerGrip):
+        assert issubclass(cls, PlannerAgent) and cls.test_time_of({}) == "planner"
+    assert PlannerGrip.test_time_of({"probe_turns": True}) == "simulator"
+    assert PlannerGrip.test_time_of({"probe_turns": False, "palm_only": True}) == "planner"
+    assert PlannerResidual.test_time_of({"probe_turns": True}) == "planner"  # no such option
+    assert ev.PolicySpec("scripted", "scripted").test_time == "planner"
+    assert ev.PolicySpec("random", "random").test_time == "network"
+    assert ev.PolicySpec("x", "rllib").test_time == "network"
+    assert ev.PolicySpec("x", "ppo").test_time == "network"  # no wrapper: its network alone
+    assert ev.PolicySpec("x", "ppo", wrapper=(PlannerHandover, {})).test_time == "planner"
+    with pytest.raises(ValueError, match="needs test_time"):
+        ev.PolicySpec("x", "oracle")
+    with pytest.raises(ValueError, match="test_time must be one of"):
+        ev.PolicySpec("x", "random", test_time="oracle")
+    entry = {"env_wrapper": [{"agents.planner_agents.PlannerGrip": {"probe_turns": True}}]}
+    assert models.entry_test_time(entry) == "simulator"
+    assert models.entry_test_time({"env_wrapper": "agents.wrappers.TrainingInfo"}) == "network"
+
+
+def _episode(suite, scene, policy, seed, success=False, grip_W=math.nan, steps=math.nan):
+    return ev.Episode(
+        suite,
+        scene,
+        policy,
+        seed,
+        steps=20,
+        success=success,
+        reached=success,
+        steps_to_closure=steps,
+        grip=grip_W,
+        grip_W=grip_W,
+    )
+
+
+EPISODES = [
+    _episode("bundled", "fig13", "scripted", 0, True, 1.5, 27),
+    _episode("bundled", "fig13", "random", 0),
+    _episode("lift", "shape_1000000", "scripted", 1_000_000, True, 2.0, 30),
+    _episode("lift", "shape_1000001", "scripted", 1_000_001),
+    _episode("lift", "shape_1000000", "random", 1_000_000),
+    _episode("lift", "shape_1000001", "random", 1_000_001),
+]
+TEST_TIMES = {"scripted": "planner", "random": "network"}
+
+
+def test_rows_say_what_each_policy_calls_and_fig13_alone_has_no_bundled_rows():
+    rows = ev.summarize(EPISODES, TEST_TIMES)
+    assert [(r["suite"], r["policy"], r["test_time"]) for r in rows] == [
+        ("fig13", "scripted", "planner"),
+        ("fig13", "random", "network"),
+        ("lift", "scripted", "planner"),
+        ("lift", "random", "network"),
+    ]
+    more = [*EPISODES, _episode("bundled", "square", "random", 0)]
+    suites = [r["suite"] for r in ev.summarize(more, TEST_TIMES)]
+    assert suites.count("bundled") == 2 and suites.count("fig13") == 2
+
+
+def test_empty_cells_read_n_a():
+    table = ev.markdown_table(ev.summarize(EPISODES, TEST_TIMES))
+    lines = table.splitlines()
+    assert lines[0].startswith("| suite | policy | test time | n | success (95% CI) |")
+    assert "| fig13 | scripted | planner | 1 | 1.00 (0.21-1.00) | 1.50 ± 0.00" in table
+    assert "| lift | random | network | 2 | 0.00 (0.00-0.66) | n/a | n/a | 0 | 0 | 0 |" in table
+    assert "- ± -" not in table and "(---)" not in table and "nan" not in table
+
+
+def test_summary_files_have_the_test_time_column(tmp_path, monkeypatch):
+    pytest.importorskip("matplotlib", reason="the viz extra draws the chart")
+    rows = ev.summarize(EPISODES, TEST_TIMES)
+    ev.write_csv(tmp_path / "summary.csv", rows)
+    with open(tmp_path / "summary.csv") as f:
+        read = list(csv.DictReader(f))
+    assert [r["test_time"] for r in read] == ["planner", "network", "planner", "network"]
+    ev.bar_chart(tmp_path / "summary.png", rows)
+    assert (tmp_path / "summary.png").stat().st_size > 0
+
+
+def test_results_page_names_date_commit_command_and_network_rows():
+    rows = ev.summarize(EPISODES, TEST_TIMES)
+    command = "python -m agents.evaluate --scenes fig13 --lift-episodes 2"
+    page = ev.results_page(rows, command, "2026-01-02 03:04 UTC", "abc1234")
+    assert page.startswith("# Results\n")
+    assert "Generated on 2026-01-02 03:04 UTC at commit `abc1234` by:" in page
+    assert f"```bash\n{command}\n```" in page
+    assert "Network-only rows: `random`." in page
+    assert "Rows of `planner` policies: `scripted`." in page
+    assert "## `fig13`: " in page and "## `lift`: " in page and "## `bundled`" not in page
+    assert "| lift | random | network | 2 |" in page
+    assert ev.git_commit(REPO) != "unknown"
+
+
+def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys):
+    rows = ev.summarize(EPISODES, TEST_TIMES)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: rows)
+    monkeypatch.setattr(ev, "default_policies", lambda *a: [])
+    shipped = REPO / "docs" / "results.md"
+    before = shipped.read_bytes() if shipped.exists() else None
+    ev.main(["--models", "--out", str(tmp_path / "eval")])
+    assert (shipped.read_bytes() if shipped.exists() else None) == before
+    assert not list(tmp_path.rglob("*.md"))
+    page = tmp_path / "results.md"
+    ev.main(["--models", "--out", str(tmp_path / "eval"), "--results-page", str(page)])
+    text = page.read_text()
+    assert "python -m agents.evaluate --models --out " in text and "--results-page" in text
+    for bad, message in ((tmp_path, "is a directory"), (tmp_path / "no" / "r.md", "folder")):
+        with pytest.raises(SystemExit):
+            ev.main(["--models", "--out", str(tmp_path / "eval"), "--results-page", str(bad)])
+        assert message in capsys.readouterr().err
+
+
+def test_help_shows_every_default(capsys):
+    with pytest.raises(SystemExit):
+        ev.main(["--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    for option, default in (
+        ("--episodes N held-out shapes", "(default: 20)"),
+        ("suite 'wide'", "(default: 0)"),
+        ("suite 'lift'", "(default: 0)"),
+        ("suite 'perturbed'", "(default: 0)"),
+        ("seeds per scene", "(default: 1)"),
+        ("output directory", "(default: runs/evaluation)"),
+    ):
+        assert f"{option} {default}" in out, option
+    assert "(default: the env's time limit, 200)" in out and "default: none" in out
+    assert "(default: None)" not in out and "(default: [])" not in out
