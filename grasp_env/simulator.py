@@ -243,24 +243,9 @@ class Simulator:
         target = state.hand.tolist()
         if palm is not None:
             target[:3] = _finite_floats(palm, 3, "palm")
-        if fingers is None:
-            return self._move_to(state, target, False)
-        target[3:] = _finite_floats(fingers, 2, "fingers")
-        return self._move_to(state, target, True)
-
-    def move_to(self, state: State, target) -> State:
-        """:meth:`move_hand` to the hand configuration ``target`` (``(x_p, y_p, theta_p, q1,
-        q2)``, 5 finite numbers), its finger angles first clipped to the joint limits (a
-        ``"joint_limit"`` event)."""
-        own_state(state, self.scene)
-        return self._move_to(state, list(_finite_floats(target, 5, "target")), True)
-
-    def _move_to(self, state: State, target: list, clip_fingers: bool) -> State:
-        """:meth:`move_hand` to ``target``, five finite Python floats (the callers check
-        them), its finger angles first clipped to the joint limits if ``clip_fingers``."""
         joint_limit = False
-        if clip_fingers:
-            f1, f2 = target[3], target[4]
+        if fingers is not None:  # clipped to the joint limits
+            f1, f2 = _finite_floats(fingers, 2, "fingers")
             (low1, low2), (high1, high2) = self._joint_low, self._joint_high
             target[3], target[4] = min(max(f1, low1), high1), min(max(f2, low2), high2)
             joint_limit = target[3] != f1 or target[4] != f2
@@ -281,7 +266,7 @@ class Simulator:
         joint_limit: bool = False,
     ) -> State:  # fmt: skip
         """The :class:`State` a compiled move from ``state`` ended in:
-        :func:`grasp_env.sim.move.move_hand`'s ``out``, event ``log``, contact ``keys`` and
+        :func:`grasp_env.sim.move.run`'s ``out``, event ``log``, contact ``keys`` and
         ``rows``, with a ``"joint_limit"`` event first where the target's fingers were
         clipped. Where the move left the object untouched, the state keeps ``state``'s
         contacts."""
@@ -305,15 +290,13 @@ class Simulator:
     def move_arrays(self, q0: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray):
         """A straight-line move from object pose ``q0`` and hand ``h0`` (touching the
         contacts ``known``, rows of keys) to the hand ``h1``, as the compiled core's arrays:
-        :func:`grasp_env.sim.move.move_hand`'s ``(out, log, keys, rows)``
+        :func:`grasp_env.sim.move.run`'s ``(out, log, keys, rows)``
         (:meth:`state_from_move` makes the state). Retried once on the reference LP path
         with a quarter of the increment and fall step if a solve fails (nothing of the failed
         attempt is kept); a second failure is reported."""
         self._solves[0] = 0
         try:
-            return _compiled(
-                move.move_hand_packed, *self._packed, q0, h0, h1, known, True, self._solves
-            )
+            return _compiled(move.run_packed, *self._packed, q0, h0, h1, known, True, self._solves)
         except WorkLimitError:
             raise  # the retry would do the same work again, and more
         except ComputationError as first:
@@ -323,7 +306,7 @@ class Simulator:
             )
             try:
                 return _compiled(
-                    move.move_hand_packed, *pack(careful), q0, h0, h1, _NO_KEYS, False,
+                    move.run_packed, *pack(careful), q0, h0, h1, _NO_KEYS, False,
                     self._solves,
                 )  # fmt: skip
             except WorkLimitError:

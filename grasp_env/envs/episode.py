@@ -165,7 +165,7 @@ class Episode:
         q, h, keys, _ = state_arrays(state)
         target, _, joint_limit = kernel.target_of(self.consts, settings, h, action)
         model = self.sim.compiled_model
-        ok, out, log, moved_keys, rows = kernel.move_env(model, q, h, keys, target)
+        ok, out, log, moved_keys, rows = kernel.try_move(model, q, h, keys, target)
         if not ok:
             out, log, moved_keys, rows = self.sim.move_arrays(q, h, target, keys)
         return self.sim.state_from_move(state, out, log, moved_keys, rows, joint_limit)

@@ -18,7 +18,7 @@ An episode lives in a few arrays (the env's docstring defines what they mean):
 :func:`step_env` advances them by one action and writes the observation, reward and info; it
 returns a status other than :data:`OK` (and changes nothing of the episode) where Python must
 take over: a move the compiled core could not finish (retried on the reference path by
-:meth:`grasp_env.Simulator.move_to`), or a grip LP for the reference solver. Python then
+:meth:`grasp_env.Simulator.move_arrays`), or a grip LP for the reference solver. Python then
 finishes the step with the same :func:`finish_step` and :func:`conclude`, so every path
 computes the same bits.
 """
@@ -102,13 +102,13 @@ def target_of(consts, settings, h: np.ndarray, action: np.ndarray):
 
 
 @njit(cache=CACHE)
-def move_env(model, q, h, keys, target):
+def try_move(model, q, h, keys, target):
     """The simulator's move of the hand from ``h`` to ``target`` (:func:`grasp_env.sim.move.
-    move_hand`, the first attempt of :meth:`grasp_env.Simulator.move_hand`): ``(ok, out,
-    log, keys, rows)``; not ok where the compiled core raised (Python retries it)."""
+    run`, the first attempt of :meth:`grasp_env.Simulator.move_arrays`): ``(ok, out, log,
+    keys, rows)``; not ok where the compiled core raised (Python retries it)."""
     solves = np.zeros(1, dtype=np.int64)
     try:
-        out, log, new_keys, rows = move.move_hand(model, q, h, target, keys, True, solves)
+        out, log, new_keys, rows = move.run(model, q, h, target, keys, True, solves)
         return True, out, log, new_keys, rows
     except Exception:  # whatever it was, Python moves again and reports it
         return False, np.zeros(move.OUT_SIZE), move.new_log(), keys, np.zeros((0, 6))
@@ -273,14 +273,14 @@ def finish_step(model, consts, settings, state, moved, a, an, ep, obs, low, high
 def step_env(model, consts, settings, state, an, ep, obs, low, high, action, info):
     """Advance one episode by ``action`` from ``state = (q, h, keys, rows)``: ``(status,
     observation, log, out, q, h, keys, rows, analysis)`` as :func:`finish_step` says, with
-    the move's event log and ``out`` (:func:`grasp_env.sim.move.move_hand`);
+    the move's event log and ``out`` (:func:`grasp_env.sim.move.run`);
     :data:`MOVE_FAILED` where the compiled move raised (nothing changed: Python moves again
     with :meth:`grasp_env.Simulator.move_arrays`, and finishes the step with
     :func:`finish_step`)."""
     q, h, keys, rows = state
     target, a, joint_limit = target_of(consts, settings, h, action)
     info[I_JOINT_LIMIT] = joint_limit
-    ok, out, log, new_keys, new_rows = move_env(model, q, h, keys, target)
+    ok, out, log, new_keys, new_rows = try_move(model, q, h, keys, target)
     if not ok:
         return MOVE_FAILED, obs, log, out, q, h, keys, rows, an.copy()
     status, seen, q_new, h_new, k, r, new_an = finish_step(

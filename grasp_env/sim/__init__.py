@@ -1,14 +1,15 @@
 """The quasi-static simulator's compiled core (numba, plain arrays, no BLAS).
 
-A whole hand move is one compiled call, :func:`grasp_env.sim.move.move_hand`, on the
+A whole hand move is one compiled call, :func:`grasp_env.sim.move.run`, on the
 scene's arrays (:class:`grasp_env.sim.model.Model`); the Python
 :class:`~grasp_env.simulator.Simulator` wraps it. Its parts live in modules named for what
 they compute:
 
 * :mod:`~grasp_env.sim.move`: the entry point, the skips and the contacts of the end state;
 * :mod:`~grasp_env.sim.increments`: the increment loop (plan, solve, check, locate, update);
+* :mod:`~grasp_env.sim.increment`: one increment on a fixed active set: pose solves, checks
+  and event location;
 * :mod:`~grasp_env.sim.motion`: the active set and least-motion twist (the LPs);
-* :mod:`~grasp_env.sim.step`: pose solves, checks and event location for one active set;
 * :mod:`~grasp_env.sim.fall`: constrained falls;
 * :mod:`~grasp_env.sim.equilibrium`: whether contacts hold the object, and the forces;
 * :mod:`~grasp_env.sim.hand`: the hand's motion (contact velocities, the support limit);

@@ -21,15 +21,15 @@ from grasp_env.sim import consistency, contact_sets, detection
 from grasp_env.sim.dependence import free_rows
 from grasp_env.sim.equilibrium import ROUNDING, held
 from grasp_env.sim.events import FALL_END, FALL_START
-from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
-from grasp_env.sim.pose import constraint_matrix
-from grasp_env.sim.step import (
+from grasp_env.sim.increment import (
     band_target,
     false_position,
     geometry_violation,
     newton,
     newton_held,
 )
+from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
+from grasp_env.sim.pose import constraint_matrix
 from grasp_env.solvers import dense, least_norm
 
 #: Halvings of a fall step that lowers nothing before it counts as no way down.
@@ -77,8 +77,8 @@ def fall_step(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray,
     (:func:`grasp_env.sim.consistency.geometry_terms`) that the nearest violated point
     violates: a point with nothing violated is the event when that term lies within
     tolerance of its limit. (The other terms may sit there already: a hand body touching the
-    object overlaps it by about zero.) The search is :func:`grasp_env.sim.step.locate`'s:
-    false position toward :func:`grasp_env.sim.step.band_target` with the Illinois rule,
+    object overlaps it by about zero.) The search is :func:`grasp_env.sim.increment.locate`'s:
+    false position toward :func:`grasp_env.sim.increment.band_target` with the Illinois rule,
     halving where the term is not known at both ends (a failed solve)."""
     q1, ok = newton(model, q + d, h, E, solves)
     trigger = -1  # the term violated at hi; -1: not known (a failed solve)

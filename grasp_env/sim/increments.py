@@ -7,7 +7,7 @@ Each increment
    (:func:`grasp_env.sim.motion.plan`), or finds a jam or a fall (:func:`_plan`);
 2. **solves** for the object pose at the step's end on ``E`` and **checks** it: no
    penetration, overlap, contact past an edge's end or negative force (:func:`_solve`);
-3. **locates** otherwise the first event to ``tol`` (:func:`grasp_env.sim.step.locate`);
+3. **locates** otherwise the first event to ``tol`` (:func:`grasp_env.sim.increment.locate`);
 4. **updates** the state: the step is accepted (:func:`_accept`), the move goes on from the
    event (:func:`_moved`), or an event right at the current point changes the plan there
    (:func:`_event_here`); where nothing consistent lies ahead the object falls or the hand
@@ -41,8 +41,8 @@ from grasp_env.sim.events import (
     TIP_TO_EDGE,
 )  # fmt: skip
 from grasp_env.sim.fall import fall_if_moved, fall_if_unheld, nudge_and_fall, touching
+from grasp_env.sim.increment import locate, sweep_limit, try_step
 from grasp_env.sim.placement import place
-from grasp_env.sim.step import locate, sweep_limit, try_step
 
 #: Chatter guard: an event (a contact lost, a jam) located more than CHATTER times in a row,
 #: each time less than CHATTER_DS of the move after the last, is treated as happening at the
@@ -221,7 +221,7 @@ def _cannot_move(model, ms: MoveState, h, h0, dh, s_end, events, solves):
 @njit(cache=CACHE)
 def _solve(model, ms: MoveState, E, v, carried: bool, h, h0, dh, s_end: float, solves):
     """Steps 2-3: the pose at the step's end, checked: ``(ok, q, ds, kind, key, value)``
-    (:func:`grasp_env.sim.step.try_step`). The step is at most ``max_step`` and the sweep
+    (:func:`grasp_env.sim.increment.try_step`). The step is at most ``max_step`` and the sweep
     limit; where ``E`` fixes the pose as a function of ``s`` and holds it with positive forces
     (carried, or :func:`grasp_env.sim.equilibrium.determined`), it stays the active set until
     an event and the pose needs no integration, so one step may go to the sweep limit (the

@@ -1,6 +1,7 @@
 """A whole hand move, compiled: the paper's active-set method (section 3.1) from ``s = 0`` to
-the end of a straight-line hand path ``h(s) = h0 + s (h1 - h0)``, in one call from Python
-(:func:`move_hand_packed`).
+the end of a straight-line hand path ``h(s) = h0 + s (h1 - h0)``, in one call: :func:`run`
+(from compiled code, with a :class:`grasp_env.sim.model.Model`) or :func:`run_packed` (from
+Python, the model packed into arrays).
 
 A move is cut short where a hand vertex would enter the support
 (:func:`grasp_env.sim.hand.support_limit`), skipped where the hand stays clear of an object
@@ -81,7 +82,7 @@ def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known
     return False
 
 
-#: Layout of the float array :func:`move_hand` returns: the object pose, the hand, the ``s``
+#: Layout of the float array :func:`run` returns: the object pose, the hand, the ``s``
 #: reached, the support limit ``s_end``, and the flags ``blocked``, ``jammed`` and
 #: ``untouched`` as 0.0 or 1.0 (one array crosses back into Python at once).
 OUT_Q, OUT_H = slice(0, 3), slice(3, 8)
@@ -92,7 +93,7 @@ ROW_POINT, ROW_NORMAL, ROW_GAP, ROW_FORCE = slice(0, 2), slice(2, 4), 4, 5
 
 
 @njit(cache=CACHE)
-def move_hand(
+def run(
     model, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, known: np.ndarray, use_known: bool,
     solves: np.ndarray,
 ):  # fmt: skip
@@ -104,15 +105,22 @@ def move_hand(
 
     ``untouched``: the object rested on the support alone (``known``, when ``use_known``) and
     no hand body came near it (:func:`hand_stays_clear`), so nothing about it changed; the
-    move loop and ``at_rest`` are skipped (its keys and rows are then empty). A non-finite end
-    state raises ``SimulationError``.
+    move loop and ``at_rest`` are skipped (its keys and rows are then empty). Otherwise the
+    move is followed from ``s = 0`` to ``s_end`` (:func:`grasp_env.sim.increments.advance`;
+    ``known`` are the contacts touching at the start when ``use_known``, else they are
+    detected), or the object settles where the hand does not move. A non-finite end state
+    raises ``SimulationError``.
     """
     s_end, blocked = support_limit(model, h0, h1)
     dh = h1 - h0
     if use_known and hand_stays_clear(model, q, h0, s_end * dh, known):
         out = _out(q, h0 + s_end * dh, s_end, s_end, blocked, False, True)
         return out, new_log(), contact_sets.empty(), np.zeros((0, 6))
-    q, s, jammed, events = move(model, q, h0, h1, s_end, known, use_known, solves)
+    if not np.any(dh) or s_end <= 0.0:  # the hand stays where it is
+        q, events = settle(model, q, h0, solves)
+        s, jammed = 0.0, False
+    else:
+        q, s, jammed, events = advance(model, q, h0, dh, s_end, known, use_known, new_log(), solves)
     h = h0 + s * dh
     if not (np.isfinite(q).all() and np.isfinite(h).all()):
         raise SimulationError("the move ended in a non-finite state")
@@ -132,20 +140,6 @@ def _out(q, h, s, s_end, blocked, jammed, untouched) -> np.ndarray:
 
 
 @njit(cache=CACHE)
-def move(
-    model, q: np.ndarray, h0: np.ndarray, h1: np.ndarray, s_end: float, known: np.ndarray,
-    use_known: bool, solves: np.ndarray,
-):  # fmt: skip
-    """Follow the move from ``s = 0`` to ``s_end``; ``known`` are the contacts touching at the
-    start when ``use_known`` (else they are detected). Returns ``(q, s, jammed, events)``."""
-    dh = h1 - h0
-    if not np.any(dh) or s_end <= 0.0:
-        q, events = settle(model, q, h0, solves)
-        return q, 0.0, False, events
-    return advance(model, q, h0, dh, s_end, known, use_known, new_log(), solves)
-
-
-@njit(cache=CACHE)
 def at_rest(model, q: np.ndarray, h: np.ndarray):
     """The contacts of a state at rest: ``(keys, rows)``, a row per contact with its point,
     normal, gap and force (``ROW_*``), the forces the least total force in equilibrium
@@ -162,11 +156,11 @@ def at_rest(model, q: np.ndarray, h: np.ndarray):
 
 
 @njit(cache=CACHE)
-def move_hand_packed(
+def run_packed(
     points, body, scale, per_length, gravity, reach, numbers, q, h0, h1, known, use_known,
     solves,
 ):  # fmt: skip
-    """:func:`move_hand` of a model in its :func:`grasp_env.sim.model.pack` form: the entry
-    point from Python, where a model crosses as arrays."""
+    """:func:`run` of a model in its :func:`grasp_env.sim.model.pack` form: the entry point
+    from Python, where a model crosses as arrays."""
     model = unpack(points, body, scale, per_length, gravity, reach, numbers)
-    return move_hand(model, q, h0, h1, known, use_known, solves)
+    return run(model, q, h0, h1, known, use_known, solves)

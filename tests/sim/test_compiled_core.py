@@ -90,13 +90,13 @@ def test_moves_that_leave_the_object_alone_skip_the_loop_exactly(
     skipped = in_rounds = 0
     for _ in range(200):
         h1 = start.hand + rng.uniform(-1, 1, 5) * np.array(amplitude)
-        sim._solves[0] = 0  # each move has its own budget, as Simulator.move_hand gives it
-        fast, _, _, _ = move.move_hand(
+        sim._solves[0] = 0  # each move has its own budget, as Simulator.move_arrays gives it
+        fast, _, _, _ = move.run(
             sim.model, start.object_pose, start.hand, h1, known, True, sim._solves
         )
         sim._solves[0] = 0
         try:
-            loop, events, keys, rows = move.move_hand(
+            loop, events, keys, rows = move.run(
                 sim.model, start.object_pose, start.hand, h1, known, False, sim._solves
             )
         except WorkLimitError:  # a long move pushing the object about, over the budget

@@ -96,7 +96,7 @@ def test_a_pinch_at_a_fold_jams_where_the_contacts_hold_it(case: str) -> None:
     chk = testing.check_state(scene, start.object_pose, start.hand, start.contacts, tol)
     assert not chk.violations, chk.violations
     try:
-        state = sim.move_to(start, target)
+        state = sim.move_hand(start, palm=target[:3], fingers=target[3:])
     except ComputationError as exc:  # what the move raised before
         pytest.fail(f"{type(exc).__name__}: {exc}")
     assert state.jammed and state.events[-1].kind == "jam"

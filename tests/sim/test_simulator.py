@@ -41,7 +41,7 @@ from scipy.optimize import brentq, linprog
 import grasp_env
 from grasp_env import Simulator, State
 from grasp_env.sim.events import FALL_END, FALL_START
-from grasp_env.sim.step import false_position
+from grasp_env.sim.increment import false_position
 from grasp_env.simulator import WorkLimitError
 from grasp_env.testing import check_state, cross, hand_polygons_W, rot
 
