@@ -91,6 +91,7 @@ def test_saved_model_acts_from_the_observation_alone(expert, tmp_path):
         (["--query-every", "0"], ["--query-every", "'0'"]),
         (["--lr", "nan"], ["--lr", "'nan'"]),
         (["--data", "no/such.npz"], ["--data", "no/such.npz"]),
+        (["--report", "no/such"], ["--report", "no/such"]),
     ],
 )
 def test_argument_errors_name_the_flag_and_value(argv, words, tmp_path, capsys):
