@@ -28,6 +28,8 @@ import gymnasium as gym
 import yaml
 
 REPO = Path(__file__).resolve().parent.parent
+#: The default hyperparameter file, as the commands show it: relative to the repository
+#: (:func:`config_path` finds it from any working directory).
 DEFAULT_CONFIG = "configs/ppo.yml"
 #: The key that names the file an entry extends.
 EXTENDS = "extends"
@@ -74,10 +76,21 @@ def read_yaml(path: str | os.PathLike, what: str = "config file") -> Any:
         raise ValueError(f"{what} {str(path)!r}: not valid YAML{where}: {problem}") from None
 
 
+def config_path(path: str | os.PathLike) -> Path:
+    """A hyperparameter file's path: ``path`` as given where it exists (relative to the
+    working directory), else a relative path of the repository's (``configs/ppo.yml``), so
+    that the commands find the shipped files from any directory."""
+    path = Path(path)
+    if path.is_absolute() or path.exists() or not (REPO / path).exists():
+        return path
+    return REPO / path
+
+
 def load_config(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
-    """Read a hyperparameter file: ``{env id: entry}``, each ``extends`` resolved. Fails with a
-    one-line ``ValueError`` naming the file and the bad part."""
-    return _load(Path(path), ())
+    """Read a hyperparameter file (found by :func:`config_path`): ``{env id: entry}``, each
+    ``extends`` resolved. Fails with a one-line ``ValueError`` naming the file and the bad
+    part."""
+    return _load(config_path(path), ())
 
 
 def _load(path: Path, extending: tuple[Path, ...]) -> dict[str, dict[str, Any]]:

@@ -37,6 +37,7 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
 import gymnasium as gym
 import numpy as np
+import yaml
 
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.models import load_checkpoint, read_model_dir
@@ -113,11 +114,39 @@ def play(job: tuple) -> tuple[int, int, list[float]]:
     return steps, won, grips
 
 
+def run_seed(run: Path) -> int | None:
+    """The training seed of a run folder (its ``train_stats.json``, else the zoo's
+    ``<env id>/args.yml``), or None where neither says."""
+    stats = run / "train_stats.json"
+    if stats.is_file():
+        return json.loads(stats.read_text()).get("seed")
+    for args in run.glob("*/args.yml"):
+        try:
+            seed = dict(yaml.load(args.read_text(), Loader=yaml.UnsafeLoader)).get("seed")
+        except (yaml.YAMLError, TypeError, ValueError):
+            continue
+        if isinstance(seed, int):
+            return seed
+    return None
+
+
 def run_labels(runs: list[Path]) -> list[str]:
-    """Each run's name in the outputs: its folder's name, or the path as given where names
-    repeat (parallel runs, each in a log folder of its own, all end in ``_1``)."""
-    names = [run.name for run in runs]
-    return names if len(set(names)) == len(names) else [str(run) for run in runs]
+    """Each run's label in the outputs: ``seed <n>`` where the runs' seeds differ, else the
+    part of their paths that tells them apart (a log folder of each parallel run), without
+    the zoo's ``ppo/<env id>_<n>`` folders."""
+    seeds = [run_seed(run) for run in runs]
+    if None not in seeds and len(set(seeds)) == len(seeds):
+        return [f"seed {s}" for s in seeds]
+    parts = [run.resolve().parts for run in runs]
+    if len(runs) == 1 or len(set(parts)) < len(parts):
+        return [run.resolve().name for run in runs]
+    head = 0  # common leading and trailing folders are left out
+    while all(len(p) > head + 1 and p[head] == parts[0][head] for p in parts):
+        head += 1
+    tail = 0
+    while all(len(p) > head + tail + 1 and p[-1 - tail] == parts[0][-1 - tail] for p in parts):
+        tail += 1
+    return ["/".join(p[head : len(p) - tail]) for p in parts]
 
 
 def curves(runs: list[Path], shapes: int, every: int, workers: int) -> list[dict]:
@@ -207,8 +236,19 @@ def main(argv: list[str] | None = None) -> None:
     if len({run.resolve() for run in runs}) < len(runs):
         parser.error(f"a run folder is given twice: {args.runs}")
     for run in runs:
-        if not run.is_dir() or not any(run.glob("rl_model_*_steps.zip")):
-            parser.error(f"{str(run)!r} is not a run folder with checkpoints")
+        if not run.is_dir():
+            parser.error(f"{str(run)!r}: no such folder")
+        if not any(run.glob("*/config.yml")):
+            parser.error(
+                f"{str(run)!r} is not a zoo run folder (<log folder>/ppo/<env id>_<n>, with "
+                "<env id>/config.yml)"
+            )
+        if not any(run.glob("rl_model_*_steps.zip")):
+            parser.error(
+                f"{str(run)!r} is a run folder with no checkpoints yet: they are saved every "
+                "--save-freq env steps of agents.train_ppo (default 25000; a shorter run, or "
+                "one with --save-freq 0, saves none)"
+            )
     env_ids = {read_model_dir(run)[1]["env_id"] for run in runs}
     if len(env_ids) != 1:
         parser.error(f"the runs trained on different env ids: {sorted(env_ids)}")

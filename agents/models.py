@@ -19,7 +19,7 @@ from typing import Any
 import gymnasium as gym
 import yaml
 
-from agents.config import load_config
+from agents.config import REPO, config_path, load_config
 from grasp_env.envs import ENV_ID, LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
 
 MODEL_DIR = Path(__file__).resolve().parent / "models"
@@ -58,9 +58,8 @@ def entry_test_time(entry: dict[str, Any]) -> str:
 def shipped_name(conf_file: str | os.PathLike, env_id: str) -> str:
     """The shipped model directory's name of a config file and env id (ValueError where
     none is shipped)."""
-    repo = MODEL_DIR.parent.parent
-    path = Path(conf_file).resolve()
-    key = (path.relative_to(repo).as_posix() if path.is_relative_to(repo) else str(path), env_id)
+    path = config_path(conf_file).resolve()
+    key = (path.relative_to(REPO).as_posix() if path.is_relative_to(REPO) else str(path), env_id)
     if key not in SHIPPED:
         raise ValueError(f"--update-shipped: no shipped model of {key[0]} for {env_id!r}")
     return SHIPPED[key]

@@ -12,9 +12,20 @@ adjustment evaluated, zoomed to the adjustment, like Fig. 14), ``plan.gif`` (the
 plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase);
 the images are drawn by :mod:`agents.plan_figures`.
 It prints a summary and exits with status 0 on form closure, 1 if the plan fails (the object
-is tippable but no grasp was found; the summary says why), 3 if the object cannot be lifted
-without friction (both tippability regions empty), 2 on bad arguments. The images need the ``viz``
-extra (matplotlib, imageio).
+is tippable but no grasp was found; the summary says why, and a failed attempt that passed
+through form closure without holding the object off the support is reported as such), 3 if
+the object cannot be lifted without friction (both tippability regions empty), 2 on bad
+arguments. Its exploratory lifting (up to ``EXPLORE_MOVES`` = 20,000 simulated moves) logs
+its progress every 2,000 moves.
+
+Step counts: the plan counts steps from its pre-liftoff placement (step 0, the fingers already
+closed on the object), one step a planned increment; ``agents.evaluate`` counts
+``FrictionlessGrasp-v0`` actions from the scene's start (fingers open), where closing the
+fingers onto the object takes several actions and an increment larger than
+``max_finger_step`` several more. On fig13 the plan reaches form closure at step 18 and the
+env at step 27: 9 actions close the fingers (0.41 rad at most 0.05 rad an action), then the
+18 lifting increments of 0.02 rad, one action each. The summary prints both. The images need
+the ``viz`` extra (matplotlib, imageio).
 
 Policy::
 
@@ -35,6 +46,8 @@ motion on the env's own step function and replays it exactly.
 from __future__ import annotations
 
 import argparse
+import inspect
+import itertools
 import json
 import logging
 import math
@@ -48,6 +61,7 @@ from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
 from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.errors import ComputationError
 from grasp_env.mechanics import closure as mech
 from grasp_env.simulator import Simulator
@@ -108,22 +122,74 @@ def plan_to_dict(plan: planning.Plan) -> dict:
     }
 
 
-def summary(plan: planning.Plan) -> str:
-    """Phase boundaries, the form-closure step, the final contacts and y*, the CPU time."""
+def env_actions(dh: np.ndarray, width: float, finger_step: float, palm_step) -> int:
+    """How many ``FrictionlessGrasp-v0`` actions move the hand by ``dh`` (shape (5,)): equal
+    actions, none beyond ``finger_step`` (rad) a finger or ``palm_step`` (palm widths, palm
+    widths, rad) the palm."""
+    scale = np.array(
+        [width * palm_step[0], width * palm_step[1], palm_step[2], finger_step, finger_step]
+    )
+    return max(1, math.ceil(float(np.abs(np.asarray(dh) / scale).max()) - 1e-9))
+
+
+def env_closure_step(plan: planning.Plan, scene) -> tuple[int, int] | None:
+    """Where ``FrictionlessGrasp-v0`` from the scene's start, with the env's default step
+    sizes, reaches the plan's form closure, as ``(actions to the plan's placement, env step
+    of form closure)``; None without form closure or where the plan's palm is not the scene's
+    (the env would first move the palm there: :class:`ScriptedPolicy`).
+
+    The plan counts its steps from its pre-liftoff placement (step 0: the fingers already
+    closed on the object), one step a planned increment; the env starts from the scene's
+    hand (fingers open) and counts actions, each moving a finger at most ``max_finger_step``:
+    closing the fingers onto the object takes several actions, and so does an increment
+    larger than one action."""
+    fc = plan.form_closure_step()
+    if fc is None or not np.allclose(plan.steps[0].state.hand[:3], scene.palm.pose):
+        return None
+    defaults = inspect.signature(FrictionlessGraspEnv.__init__).parameters
+    finger, palm = defaults["max_finger_step"].default, defaults["max_palm_step"].default
+    hands = [scene.initial_hand] + [st.state.hand for st in plan.steps[: fc + 1]]
+    counts = [
+        env_actions(np.subtract(b, a), scene.palm.width, finger, palm)
+        for a, b in itertools.pairwise(hands)
+    ]
+    return counts[0], sum(counts)
+
+
+def summary(plan: planning.Plan, scene=None) -> str:
+    """Phase boundaries, the form-closure step (and where the env from the scene's start
+    reaches it, :func:`env_closure_step`), the final contacts and y*, the CPU time."""
     lines = [f"status: {plan.status} ({plan.message})"]
     if plan.placement:
         lines.append(f"pre-liftoff placement: {plan.placement}")
     for phase, (a, b) in plan.phase_bounds().items():
         lines.append(f"  {phase:16s} steps {a:4d} .. {b:4d}")
     fc = plan.form_closure_step()
-    lines.append(f"form closure at step: {fc if fc is not None else 'never'}")
+    if plan.success:
+        lines.append(f"form closure at step: {fc} (plan steps from the pre-liftoff placement)")
+        env = env_closure_step(plan, scene) if scene is not None else None
+        if env is not None:
+            lines.append(
+                f"  in FrictionlessGrasp-v0 from the scene's start (agents.evaluate): env step "
+                f"{env[1]}: {env[0]} actions close the fingers from the scene's open hand to "
+                f"the placement, then {env[1] - env[0]} for the {fc} lifting increments (at "
+                "most max_finger_step a finger an action)"
+            )
+    elif fc is not None:
+        lines.append(
+            f"form closure: none held; the failed attempt passed through form closure at step "
+            f"{fc} without holding the object off the support"
+        )
+    else:
+        lines.append("form closure: never")
     if plan.steps:
         final = plan.steps[-1]
         bodies = ", ".join(f"{c.body} ({c.kind})" for c in final.state.contacts)
         lines.append(f"final contacts: {len(final.state.contacts)}: {bodies}")
         weight = final.state.scene.object_weight
         if math.isfinite(final.grip):
-            lines.append(f"final y*: {final.grip:.6g} ({final.grip / weight:.4f} object weights)")
+            what = "final y*" if plan.success else "y* of the final state (not a grasp)"
+            lines.append(f"{what}: {final.grip:.6g} ({final.grip / weight:.4f} object weights)")
     lines.append(f"CPU time: {plan.cpu_time:.2f} s")
     return "\n".join(lines)
 
@@ -136,7 +202,9 @@ def main(argv: list[str] | None = None) -> int:
         epilog=f"bundled scenes: {', '.join(bundled_scenes())}",
         formatter_class=HelpFormatter,
     )
-    parser.add_argument("--scene", required=True, help="bundled scene name or YAML path")
+    parser.add_argument(
+        "--scene", "--scenes", dest="scene", required=True, help="bundled scene name or YAML path"
+    )
     parser.add_argument(
         "--out", type=Path, help="output directory (default: runs/scripted/<scene name>)"
     )
@@ -169,10 +237,13 @@ def main(argv: list[str] | None = None) -> int:
     if plan.success:
         write_branch_plot(sim, plan, args.out / "grip_branches.png")
         written.append("grip_branches.png")
-    print(summary(plan))
+    print(summary(plan, scene))
     print(f"filmstrip frames (plan steps): {frames}")
     print(f"wrote {', '.join(written)} to {args.out}")
-    return EXIT_OK if plan.success else EXIT_FAILED
+    if not plan.success:
+        print(f"no grasp: {plan.message}")
+        return EXIT_FAILED
+    return EXIT_OK
 
 
 # ---------------------------------------------------------------------- env policy

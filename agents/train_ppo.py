@@ -1,7 +1,11 @@
 """Train a PPO agent (stable-baselines3, CPU) on one env id of a zoo-format hyperparameter file.
 
-    python -m agents.train_ppo --env FrictionlessGrasp-v0 [--seed 0] [-n N] [--max-minutes M]
-        [-f runs] [--out DIR | --update-shipped]
+    python -m agents.train_ppo --env FrictionlessGrasp-v0 [--conf configs/ppo.yml] [--seed 0]
+        [-n N] [--max-minutes M] [--params KEY:VALUE ...] [-f runs] [--out DIR | --update-shipped]
+
+Runs from any directory: a relative ``--conf`` not found from the working directory is the
+repository's (``configs/ppo.yml``); runs go below ``-f`` (relative to the working
+directory). The zoo's short spellings ``-conf`` and ``-params`` work as well.
 
 The training is rl-baselines3-zoo's (:class:`rl_zoo3.exp_manager.ExperimentManager`: the
 entry's schedules, ``VecNormalize``, ``Monitor``, ``env_wrapper`` and ``callback``,
@@ -257,14 +261,17 @@ def parser() -> argparse.ArgumentParser:
     ))
     add = p.add_argument
     add("--env", "--env-id", dest="env", default=ENV_ID, metavar="ID", help="env id")
-    add("-conf", "--conf-file", "--config", dest="conf_file", default=config.DEFAULT_CONFIG,
-        metavar="FILE", help="zoo-format hyperparameter file")
+    add("--conf", "--conf-file", "--config", "-conf", dest="conf_file",
+        default=config.DEFAULT_CONFIG, metavar="FILE",
+        help="zoo-format hyperparameter file (a relative path not found from here: the "
+        "repository's)")
     add("--seed", type=int, default=0, metavar="N", help="training env k is seeded seed + k")
     add("-n", "--n-timesteps", type=positive_int, metavar="N",
         help="total env steps (default: the entry's n_timesteps)")
     add("--max-minutes", type=_positive_float, metavar="M",
         help="stop after M minutes of wall time (the model is saved as it is then)")
-    add("-params", "--hyperparams", nargs="+", action=Hyperparams, metavar="KEY:VALUE",
+    add("--params", "--hyperparams", "-params", dest="hyperparams", nargs="+", action=Hyperparams,
+        metavar="KEY:VALUE",
         help="override entry keys, e.g. n_steps:256 learning_rate:lin_3e-4")
     add("-f", "--log-folder", default="runs", metavar="DIR",
         help="runs go to DIR/ppo/<env id>_<n>, a new n each run")

@@ -34,7 +34,7 @@ import yaml
 
 from agents.config import REPO, load_config, wrapper_specs
 from agents.rllib_policy import CHECKPOINT_DIR
-from grasp_env.cli import nonnegative_int, out_dir_problem, positive_int
+from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 
 if TYPE_CHECKING:
     from ray.rllib.algorithms.algorithm import Algorithm
@@ -319,7 +319,9 @@ def _out_problem(out: Path) -> str | None:
 def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, Any]]:
     """Parse and check everything that can be checked before Ray starts; returns the
     arguments and the entry."""
-    parser = argparse.ArgumentParser(prog="python -m agents.train_rllib", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.train_rllib", description=__doc__, formatter_class=HelpFormatter
+    )
     parser.add_argument("--env", required=True, help="env id (a top-level key of --config)")
     parser.add_argument("--num-env-runners", type=nonnegative_int, required=True)
     parser.add_argument("--config", default=str(DEFAULT_CONFIG), help="RLlib PPO YAML file")
@@ -335,7 +337,7 @@ def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, An
     stop = parser.add_mutually_exclusive_group()
     stop.add_argument("--iterations", type=positive_int, help="training iterations")
     stop.add_argument("--timesteps", type=positive_int, help="env steps (default: entry's)")
-    parser.add_argument("--out", help="run directory (default runs/rllib/<env id>)")
+    parser.add_argument("--out", help="run directory (default: runs/rllib/<env id>)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoint-every", type=positive_int, default=10, help="iterations")
     args = parser.parse_args(argv)

@@ -1,17 +1,15 @@
 """Run the benchmark suite and write its pages (default ``runs/benchmarks/*.md``).
 
-Usage: ``python -m benchmarks [--quick] [--only NAME ...] [--out DIR]`` from the repository
-root (full suite about 16 minutes, ``--quick`` about one). ``--out benchmarks/results``
-updates the committed pages; by default nothing shipped is overwritten. Names: throughput,
-work_precision, profile, memory, planner (the scripted planner on random shapes,
-``planner_shapes.py``), blas_variation (seeded episodes under several OpenBLAS core types),
-step_times (the step-time tail on adversarial shapes), ppo (PPO training throughput,
+Usage: ``python -m benchmarks [--quick] [--only NAME ...] [--out DIR]``, from any directory
+(full suite about 16 minutes, ``--quick`` about one: small budgets, no cold compile). ``--out
+benchmarks/results`` updates the committed pages; by default nothing shipped is overwritten.
+Names: throughput, work_precision, profile, memory, planner (the scripted planner on random
+shapes, ``planner_shapes.py``), blas_variation (seeded episodes under several OpenBLAS core
+types), step_times (the step-time tail on adversarial shapes), ppo (PPO training throughput,
 ``ppo_throughput.py``; left out of ``--quick`` unless named with ``--only``), scripted_speedup
-(the scripted policy's episode rate against the simulator before its compiled core),
-step_parts (the env's shell and the compiled move timed apart, unprofiled), batched (the
-batched env of ``gymnasium.make_vec`` against N and threads, resets, and where a batched
-step's time goes).
-"""
+(the scripted policy's episode rate against the simulator before its compiled core), step_parts
+(the env's shell and the compiled move timed apart, unprofiled), batched (the batched env of
+``gymnasium.make_vec`` against N and threads, resets, and where a batched step's time goes)."""
 
 from __future__ import annotations
 
@@ -33,6 +31,7 @@ from benchmarks import (
     throughput,
     work_precision,
 )
+from benchmarks.blas_variation import CORE_TYPES
 from benchmarks.common import OUT, headless
 from grasp_env.cli import HelpFormatter, out_dir_problem
 
@@ -44,7 +43,9 @@ SUITE = {
     "planner": lambda quick, out: planner_shapes.run(
         out / "planner_shapes.md", shapes=2 if quick else 200, env=not quick
     ),
-    "blas_variation": lambda quick, out: blas_variation.run(out, episodes=3 if quick else 200),
+    "blas_variation": lambda quick, out: blas_variation.run(
+        out, episodes=3 if quick else 200, core_types=QUICK_CORE_TYPES if quick else CORE_TYPES
+    ),
     "step_times": lambda quick, out: step_times.run(out, episodes=3 if quick else 200),
     "ppo": lambda quick, out: ppo_throughput.run(quick, out / "ppo_throughput.md"),
     "step_parts": lambda quick, out: step_parts.run(quick, out / "step_parts.md"),
@@ -54,6 +55,8 @@ SUITE = {
     "batched": lambda quick, out: batched.run(quick, out / "batched.md"),
 }
 QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget
+#: OpenBLAS core types of ``--quick``'s blas_variation (the full suite runs all of them).
+QUICK_CORE_TYPES = CORE_TYPES[:2]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -84,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     names = args.only or [n for n in SUITE if not (args.quick and n in QUICK_SKIP)]
     start = time.perf_counter()
     for name in names:
+        print(f"== {name} ...", flush=True)
         t0 = time.perf_counter()
         SUITE[name](args.quick, args.out)
         print(f"== {name}: {time.perf_counter() - t0:.0f} s")

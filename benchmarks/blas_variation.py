@@ -37,11 +37,11 @@ import sys
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from benchmarks.common import OUT, REPO, headless, table, write
+from benchmarks.common import OUT, REPO, headless, parser, table, write
 from grasp_env.cli import out_dir_problem
 
 CORE_TYPES = ("unset", "Haswell", "Sandybridge", "Prescott")
@@ -229,9 +229,14 @@ def run(
     seeds = list(range(episodes))
     jobs = [(c, s) for s in suites for c in cores]
     t0 = time.perf_counter()
+    print(f"blas_variation: {len(jobs)} worker processes, {episodes} episodes each ...", flush=True)
     with ThreadPoolExecutor(max(1, workers)) as ex:
-        futures = {job: ex.submit(spawn, *job, seeds, steps) for job in jobs}
-        records = {job: fut.result() for job, fut in futures.items()}
+        futures = {ex.submit(spawn, *job, seeds, steps): job for job in jobs}
+        done = {}
+        for k, fut in enumerate(as_completed(futures), 1):
+            done[futures[fut]] = fut.result()
+            print(f"  {k}/{len(jobs)}: {' '.join(futures[fut])}", flush=True)
+        records = {job: done[job] for job in jobs}
     wall = time.perf_counter() - t0
     report: dict[str, Any] = {
         "episodes": episodes,
@@ -398,10 +403,9 @@ def replay(suite: str, seed: int, steps: int) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=200, help="episodes a suite (200)")
-    ap.add_argument("--quick", action="store_true", help="3 episodes a suite")
-    ap.add_argument("--steps", type=int, default=100, help="steps an episode at most (100)")
+    ap = parser("benchmarks.blas_variation", __doc__, quick="3 episodes a suite")
+    ap.add_argument("--episodes", type=int, default=200, help="episodes a suite")
+    ap.add_argument("--steps", type=int, default=100, help="steps an episode at most")
     ap.add_argument(
         "--core-types",
         nargs="+",
@@ -410,8 +414,8 @@ def main(argv: list[str] | None = None) -> int:
         help=f"OpenBLAS core types ({' '.join(CORE_TYPES)}); unset is always run",
     )
     ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES))
-    ap.add_argument("--workers", type=int, default=2, help="processes at a time (2)")
-    ap.add_argument("--out", type=Path, default=OUT, help="results folder (runs/benchmarks)")
+    ap.add_argument("--workers", type=int, default=2, help="processes at a time")
+    ap.add_argument("--out", type=Path, default=OUT, help="results folder")
     ap.add_argument(
         "--replay",
         nargs=2,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import platform
@@ -19,6 +20,24 @@ RESULTS = Path(__file__).resolve().parent / "results"
 REPO = Path(__file__).resolve().parent.parent
 #: Default output folder: commands never overwrite the shipped results unless asked.
 OUT = REPO / "runs" / "benchmarks"
+
+
+def parser(module: str, doc: str, page: str | None = None, quick: str | None = None):
+    """A benchmark's command line (``python -m <module>``): its docstring's first line, every
+    default shown in ``--help``; ``--quick`` with help ``quick`` and ``--out`` (default
+    ``runs/benchmarks/<page>``) where given."""
+    from grasp_env.cli import HelpFormatter
+
+    ap = argparse.ArgumentParser(
+        prog=f"python -m {module}",
+        description=doc.splitlines()[0].replace("``", ""),
+        formatter_class=HelpFormatter,
+    )
+    if quick is not None:
+        ap.add_argument("--quick", action="store_true", help=quick)
+    if page is not None:
+        ap.add_argument("--out", type=Path, default=OUT / page, help="the page (markdown)")
+    return ap
 
 
 def headless() -> None:

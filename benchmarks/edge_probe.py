@@ -25,7 +25,6 @@ to ``runs/benchmarks/edge_probe.md`` unless ``--out`` says otherwise.
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from pathlib import Path
@@ -34,7 +33,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from benchmarks.common import OUT, headless, table, write
+from benchmarks.common import headless, parser, table, write
 from benchmarks.soak import new_record, rest_on_stable_edge, run_env, stress_scene
 
 FAMILIES = (
@@ -198,11 +197,10 @@ def run(shapes: int, steps: int, seed: int, out: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--shapes", type=int, default=10, help="shapes per family (default 10)")
-    ap.add_argument("--steps", type=int, default=300, help="steps per shape (default 300)")
-    ap.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-    ap.add_argument("--out", type=Path, default=OUT / "edge_probe.md", help="the page")
+    ap = parser("benchmarks.edge_probe", __doc__, "edge_probe.md")
+    ap.add_argument("--shapes", type=int, default=10, help="shapes per family")
+    ap.add_argument("--steps", type=int, default=300, help="steps per shape")
+    ap.add_argument("--seed", type=int, default=0, help="seed")
     args = ap.parse_args(argv)
     run(args.shapes, args.steps, args.seed, args.out)
     return 0

@@ -9,7 +9,7 @@ Every measurement runs in a fresh ``python`` subprocess (the same interpreter an
   numba's cache where the package keeps it (``NUMBA_CACHE_DIR`` unset); median of
   ``repeat`` processes, CartPole-v1's ``make`` for comparison; then the same cold (a new
   empty ``NUMBA_CACHE_DIR``: everything compiles; one process, at most 600 s) and warm
-  (that folder filled; median of 3 processes, 1 with ``--quick``);
+  (that folder filled; median of 3 processes); not with ``--quick``;
 * one env process: peak RSS (``VmHWM``, which ``exec`` resets, unlike ``ru_maxrss``) after
   the imports, after ``make`` and after ``steps`` random-action steps;
 * eight workers: ``gymnasium.make_vec(..., vectorization_mode="async")`` with the ``fork``
@@ -23,7 +23,6 @@ Usage: ``python -m benchmarks.memory [--quick]``
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import statistics
@@ -32,7 +31,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.common import OUT, table, write
+from benchmarks.common import OUT, parser, table, write
 
 STARTUP = """
 import json, time
@@ -180,19 +179,34 @@ def run(
     steps: int | None = None,
     repeat: int | None = None,
     workers: int = 8,
+    cold: bool | None = None,
 ) -> Path:
-    """Run the memory and start-up benchmark and write its markdown page."""
+    """Run the memory and start-up benchmark and write its markdown page. ``cold``: also
+    start up from an empty compile cache, where everything compiles (minutes; default: not
+    with ``quick``)."""
     steps = steps if steps is not None else (20 if quick else 200)
     repeat = repeat if repeat is not None else (3 if quick else 7)
+    cold = not quick if cold is None else cold
+    print(f"memory: start-up with the package's cache, {repeat} processes ...", flush=True)
     startup = package_cache(repeat)
     print("start-up, package's cache (s):", startup)
     warm_runs = 1 if quick else 3
-    cache = compile_cache(warm_runs)
-    print("cold, warm (s):", cache)
+    if cold:
+        print(
+            "memory: start-up from an empty compile cache (everything compiles: a few "
+            f"minutes), then {warm_runs} warm ...",
+            flush=True,
+        )
+        cache = compile_cache(warm_runs)
+        print("cold, warm (s):", cache)
+    else:
+        cache = "not measured (--quick: compiling everything takes minutes; run without it)"
     imports = import_breakdown()
+    print(f"memory: one env process, {steps} steps ...", flush=True)
     one = child(ONE_ENV, steps)
     print("one env (MiB):", one)
     contexts = ("fork",) if quick else ("fork", "spawn")
+    print(f"memory: {workers} env workers ({', '.join(contexts)}) ...", flush=True)
     vec = {ctx: child(WORKERS, steps, workers, ctx) for ctx in contexts}
     print("workers (MiB):", vec)
     columns = {"package's cache (ms)": startup}
@@ -256,12 +270,8 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "--quick", action="store_true", help="20 steps, 3 start-up repeats, 1 warm run, fork only"
-    )
-    ap.add_argument("--out", type=Path, default=OUT / "memory.md")
-    args = ap.parse_args(argv)
+    quick = "20 steps, 3 start-up repeats, 1 warm run, fork only"
+    args = parser("benchmarks.memory", __doc__, "memory.md", quick).parse_args(argv)
     run(args.quick, args.out)
     return 0
 

@@ -17,13 +17,12 @@ two workers: about 10 minutes, 20 more with ``--env``).
 
 from __future__ import annotations
 
-import argparse
 import statistics
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from benchmarks.common import OUT, BudgetExceeded, headless, table, time_limit, write
+from benchmarks.common import BudgetExceeded, headless, parser, table, time_limit, write
 
 SUITES = ("heldout", "wide")
 
@@ -235,13 +234,12 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser("benchmarks.planner_shapes", __doc__, "planner_shapes.md")
     ap.add_argument("--shapes", type=int, default=200, help="shapes a suite")
     ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES))
     ap.add_argument("--env", action="store_true", help="also the scripted policy in the env")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall seconds a plan or episode")
     ap.add_argument("--workers", type=int, default=2, help="processes")
-    ap.add_argument("--out", type=Path, default=OUT / "planner_shapes.md")
     args = ap.parse_args(argv)
     for name in ("shapes", "workers"):
         if getattr(args, name) < 1:

@@ -16,13 +16,12 @@ Usage: ``python -m benchmarks.ppo_throughput [--quick] [--rounds N] [--entry fig
 
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import time
 from pathlib import Path
 
-from benchmarks.common import OUT, REPO, headless, table, write
+from benchmarks.common import OUT, REPO, headless, parser, table, write
 from grasp_env.cli import positive_int
 
 VEC_ENVS = ("dummy", "subproc")
@@ -133,14 +132,14 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="one rollout per measurement")
-    parser.add_argument(
+    ap = parser(
+        "benchmarks.ppo_throughput", __doc__, "ppo_throughput.md", "one rollout per measurement"
+    )
+    ap.add_argument(
         "--rounds", type=positive_int, help=f"alternating rounds (default {ROUNDS}, 1 with --quick)"
     )
-    parser.add_argument("--entry", default="fig13_fingers", help="configs/ppo.yml entry")
-    parser.add_argument("--out", type=Path, default=OUT / "ppo_throughput.md")
-    args = parser.parse_args(argv)
+    ap.add_argument("--entry", default="fig13_fingers", help="configs/ppo.yml entry")
+    args = ap.parse_args(argv)
     run(args.quick, args.out, args.entry, args.rounds)
 
 

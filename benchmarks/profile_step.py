@@ -21,7 +21,6 @@ Usage: ``python -m benchmarks.profile_step [--quick] [--baseline old.json]``
 
 from __future__ import annotations
 
-import argparse
 import cProfile
 import json
 import pstats
@@ -34,7 +33,7 @@ from pathlib import Path
 import gymnasium as gym
 
 import grasp_env
-from benchmarks.common import OUT, git_commit, headless, machine_line, median_time, table
+from benchmarks.common import OUT, git_commit, headless, machine_line, median_time, parser, table
 from benchmarks.throughput import RandomActions
 from benchmarks.work_precision import closing_motion
 
@@ -239,11 +238,9 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="40 steps per configuration")
+    ap = parser("benchmarks.profile_step", __doc__, "profile.md", "40 steps per configuration")
     ap.add_argument("--steps", type=int, help="random-action steps per configuration")
     ap.add_argument("--baseline", type=Path, help="an older profile.json to compare with")
-    ap.add_argument("--out", type=Path, default=OUT / "profile.md")
     args = ap.parse_args(argv)
     run(args.quick, args.out, args.steps, args.baseline)
     return 0

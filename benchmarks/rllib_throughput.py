@@ -15,14 +15,13 @@ Usage: ``python -m benchmarks.rllib_throughput [--quick] [--iterations K] [--env
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import os
 import sys
 import time
 from pathlib import Path
 
-from benchmarks.common import OUT, REPO, headless, table, write
+from benchmarks.common import OUT, REPO, headless, parser, table, write
 from grasp_env.cli import out_dir_problem
 
 #: RLlib set-ups: (env runners, envs per runner). Two envs in one process is what SB3's
@@ -126,12 +125,12 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="2 updates per measurement")
-    parser.add_argument("--iterations", type=int, help="updates per measurement (default 8)")
-    parser.add_argument("--env", default="FrictionlessGrasp-v0", help="env id of both files")
-    parser.add_argument("--out", type=Path, default=OUT / "rllib_throughput.md")
-    args = parser.parse_args(argv)
+    ap = parser(
+        "benchmarks.rllib_throughput", __doc__, "rllib_throughput.md", "2 updates per measurement"
+    )
+    ap.add_argument("--iterations", type=int, help="updates per measurement (default: 8)")
+    ap.add_argument("--env", default="FrictionlessGrasp-v0", help="env id of both files")
+    args = ap.parse_args(argv)
     missing = [m for m in ("ray", "stable_baselines3") if importlib.util.find_spec(m) is None]
     if missing:
         print(
@@ -140,9 +139,9 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     if args.iterations is not None and args.iterations <= 0:
-        parser.error(f"--iterations must be positive, got {args.iterations}")
+        ap.error(f"--iterations must be positive, got {args.iterations}")
     if problem := out_dir_problem(args.out.parent):
-        parser.error(f"--out {problem}")
+        ap.error(f"--out {problem}")
     run(args.quick, args.out, args.env, args.iterations)
     return 0
 

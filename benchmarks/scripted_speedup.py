@@ -16,7 +16,6 @@ compiled core; 3 rounds of 20 s: about 3 minutes).
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import statistics
@@ -27,7 +26,7 @@ import tempfile
 from io import BytesIO
 from pathlib import Path
 
-from benchmarks.common import OUT, headless, table, write
+from benchmarks.common import OUT, headless, parser, table, write
 
 #: The commit measured against by default: the simulator and env before the compiled core.
 BASE = "dff3a09"
@@ -44,7 +43,10 @@ if which == "lunar":
     import numpy as np
     try:
         env = gym.make("LunarLander-v3")
-    except Exception as exc:  # Box2D not installed
+    except gym.error.DependencyNotInstalled:  # not gymnasium[box2d]: it breaks pygame
+        print(json.dumps({"absent": 'Box2D is not installed (pip install box2d)'}))
+        sys.exit(0)
+    except Exception as exc:
         print(json.dumps({"absent": f"{type(exc).__name__}: {exc}"}))
         sys.exit(0)
     rng = np.random.default_rng(0)
@@ -191,12 +193,11 @@ def run(base: str | Path = BASE, budget: float = 20.0, rounds: int = 3, out: Pat
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--base", default=BASE, help=f"the earlier commit (default {BASE})")
+    ap = parser("benchmarks.scripted_speedup", __doc__, quick="2 rounds of 3 s")
+    ap.add_argument("--base", default=BASE, help="the earlier commit")
     ap.add_argument("--budget", type=float, default=20.0, help="seconds per side per round")
-    ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--quick", action="store_true", help="2 rounds of 3 s")
-    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--rounds", type=int, default=3, help="rounds")
+    ap.add_argument("--out", type=Path, help="the page (default: none, printed only)")
     args = ap.parse_args(argv)
     budget, rounds = (3.0, 2) if args.quick else (args.budget, args.rounds)
     run(args.base, budget, rounds, args.out)

@@ -21,9 +21,11 @@ report goes to ``runs/benchmarks/soak.md`` unless ``--out`` says otherwise
 
 Usage::
 
-    python benchmarks/soak.py --quick                      # ~2,000 steps, 20 shapes
-    python benchmarks/soak.py --steps 20000 --shapes 100   # medium
-    python benchmarks/soak.py                              # the full 1,000,000 x 1,000
+    python -m benchmarks.soak --quick                      # ~2,000 steps, 20 shapes
+    python -m benchmarks.soak --steps 20000 --shapes 100   # medium
+    python -m benchmarks.soak                              # the full 1,000,000 x 1,000
+
+(``python benchmarks/soak.py ...`` runs the same.)
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from grasp_env.cli import HelpFormatter
 from grasp_env.testing import EQ_RTOL, check_state
 
 #: The committed results (``--out benchmarks/results/soak.md`` updates them) and the default
@@ -525,11 +528,15 @@ def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, rec
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.soak",
+        description=__doc__.splitlines()[0].replace("``", ""),
+        formatter_class=HelpFormatter,
+    )
     ap.add_argument("--steps", type=int, default=1_000_000, help="total env steps")
     ap.add_argument("--shapes", type=int, default=1000, help="random shapes")
-    ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 2)))
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 2)), help="processes")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the shapes and actions")
     ap.add_argument("--quick", action="store_true", help="2,000 steps on 20 shapes")
     ap.add_argument("--only", type=int, default=None, help="run one shape index (serial)")
     ap.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
@@ -537,7 +544,7 @@ def main(argv: list[str] | None = None) -> int:
         "--out",
         type=Path,
         default=OUT / "soak.md",
-        help="report page; the checkpoint goes beside it (default: runs/benchmarks/soak.md)",
+        help="report page; the checkpoint goes beside it",
     )
     args = ap.parse_args(argv)
     if args.quick:

@@ -20,7 +20,6 @@ Usage: ``python -m benchmarks.step_parts [--quick] [--steps N] [--out FILE]``
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import statistics
@@ -33,7 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env  # noqa: F401  (registers the env ids)
-from benchmarks.common import OUT, REPO, headless, table, write
+from benchmarks.common import OUT, REPO, headless, parser, table, write
 from benchmarks.throughput import RandomActions
 from grasp_env.envs.episode import state_arrays
 from grasp_env.kernel import step as kernel
@@ -244,10 +243,8 @@ def run(quick: bool = False, out: Path = OUT / "step_parts.md", steps: int | Non
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="200 steps per set-up")
+    ap = parser("benchmarks.step_parts", __doc__, "step_parts.md", "200 steps per set-up")
     ap.add_argument("--steps", type=int, help="random-action steps per set-up")
-    ap.add_argument("--out", type=Path, default=OUT / "step_parts.md")
     args = ap.parse_args(argv)
     run(args.quick, args.out, args.steps)
     return 0

@@ -19,7 +19,6 @@ Usage: ``python -m benchmarks.step_times [--episodes N] [--quick] [--steps S] [-
 
 from __future__ import annotations
 
-import argparse
 import heapq
 import json
 import multiprocessing as mp
@@ -33,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.common import OUT, headless, table, write
+from benchmarks.common import OUT, headless, parser, table, write
 from grasp_env.cli import out_dir_problem
 
 SUITES = ("extreme", "soak")
@@ -237,13 +236,12 @@ def replay(suite: str, seed: int, step: int, repeat: int = 5) -> list[float]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=200, help="episodes a suite (200)")
-    ap.add_argument("--quick", action="store_true", help="3 episodes a suite")
-    ap.add_argument("--steps", type=int, default=100, help="steps an episode at most (100)")
-    ap.add_argument("--workers", type=int, default=2, help="processes, one per core (2)")
-    ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES))
-    ap.add_argument("--out", type=Path, default=OUT, help="results folder (runs/benchmarks)")
+    ap = parser("benchmarks.step_times", __doc__, quick="3 episodes a suite")
+    ap.add_argument("--episodes", type=int, default=200, help="episodes a suite")
+    ap.add_argument("--steps", type=int, default=100, help="steps an episode at most")
+    ap.add_argument("--workers", type=int, default=2, help="processes, one per core")
+    ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES), help="suites")
+    ap.add_argument("--out", type=Path, default=OUT, help="results folder")
     ap.add_argument(
         "--replay",
         nargs=3,

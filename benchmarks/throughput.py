@@ -14,7 +14,6 @@ Usage: ``python -m benchmarks.throughput [--quick]``
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import time
 from dataclasses import dataclass, field
@@ -26,7 +25,7 @@ import numpy as np
 from gymnasium import spaces
 
 import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
-from benchmarks.common import OUT, headless, table, write
+from benchmarks.common import OUT, headless, parser, table, write
 
 BASELINES = ("LunarLander-v3", "CartPole-v1")
 #: The env configurations stepped with random actions.
@@ -36,14 +35,18 @@ CONFIGS = (
     {"shape_randomizer": True, "palm_control": True},
     {"start": "preliftoff"},
 )
-#: Targets: (kind, configuration, baseline, least ratio).
+#: Targets: (configuration, baseline, least ratio); a least ratio of None: the ratio is
+#: reported without a verdict (against CartPole-v1, an env with no contacts to simulate).
 TARGETS = (
-    ("target", {}, "LunarLander-v3", 1.0),
-    ("moonshot", {}, "CartPole-v1", 0.5),
-    ("target", {"start": "preliftoff"}, "LunarLander-v3", 0.5),
-    ("target", {"palm_control": True}, "LunarLander-v3", 1.0),
-    ("target", {"shape_randomizer": True, "palm_control": True}, "LunarLander-v3", 1.0),
+    ({}, "LunarLander-v3", 1.0),
+    ({}, "CartPole-v1", None),
+    ({"start": "preliftoff"}, "LunarLander-v3", 0.5),
+    ({"palm_control": True}, "LunarLander-v3", 1.0),
+    ({"shape_randomizer": True, "palm_control": True}, "LunarLander-v3", 1.0),
 )
+#: Why a Box2D baseline is missing, and the install that keeps pygame working (gymnasium's
+#: own message recommends its box2d extra, whose pygame-ce overwrites pygame's files).
+NO_BOX2D = 'Box2D is not installed (pip install box2d, or pip install -e ".[bench]")'
 ACTION_BLOCK = 4096  #: random actions drawn per call to the generator
 WARMUP_STEPS = 20  #: untimed random steps of each env before its first round
 
@@ -166,8 +169,9 @@ def make_runners() -> tuple[list[Runner], list[str]]:
     for i, name in enumerate(BASELINES, len(CONFIGS)):
         try:
             env = gym.make(name)
-        except gym.error.DependencyNotInstalled as exc:
-            notes.append(f"{name} skipped: {exc}")
+        except gym.error.DependencyNotInstalled:
+            notes.append(f"{name} skipped: {NO_BOX2D}")
+            print(f"{name} skipped: {NO_BOX2D}")
             continue
         runners.append(Runner(name, env, RandomActions(env.action_space, seed=i)))
     return runners, notes
@@ -205,17 +209,17 @@ def run(
         runner.env.close()
     by_name = {runner.name: runner for runner in runners}
     targets = []
-    for kind, kwargs, baseline, least in TARGETS:
+    for kwargs, baseline, least in TARGETS:
         name = _name(kwargs)
-        line = f"{kind}: {name} >= {least:g}x {baseline}"
+        line = f"target: {name} >= {least:g}x {baseline}" if least else f"{name} / {baseline}"
         if baseline not in base:
             notes.append(f"{line} skipped: {baseline} not measured")
             continue
         pairs = zip(by_name[name].rates, base[baseline].rates, strict=True)
         ratio = statistics.median(x / y for x, y in pairs)
-        verdict = "met" if ratio >= least else "not met"
-        targets.append(f"* {line}: **{ratio:.3f}x** ({verdict})")
-        print(f"{line}: {ratio:.3f}x ({verdict})")
+        verdict = "" if least is None else f" ({'met' if ratio >= least else 'not met'})"
+        targets.append(f"* {line}: **{ratio:.3f}x**{verdict}")
+        print(f"{line}: {ratio:.3f}x{verdict}")
     body = [
         f"{rounds} rounds x {budget:g} s per env, rotated order; random actions from a "
         "seeded Generator in blocks; `render_mode=None`; resets inside the timing; ratios "
@@ -234,11 +238,9 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="2 rounds of 1 s per env")
+    ap = parser("benchmarks.throughput", __doc__, "throughput.md", "2 rounds of 1 s per env")
     ap.add_argument("--budget", type=float, help="seconds per env per round")
-    ap.add_argument("--rounds", type=int)
-    ap.add_argument("--out", type=Path, default=OUT / "throughput.md")
+    ap.add_argument("--rounds", type=int, help="rounds")
     args = ap.parse_args(argv)
     run(args.quick, args.out, args.budget, args.rounds)
     return 0

@@ -20,7 +20,6 @@ Usage: ``python -m benchmarks.work_precision [--quick]``
 
 from __future__ import annotations
 
-import argparse
 import functools
 import itertools
 from dataclasses import dataclass
@@ -30,8 +29,8 @@ from typing import NamedTuple
 import numpy as np
 
 import grasp_env
-from benchmarks.common import OUT, BudgetExceeded, median_time, table, time_limit, write
-from grasp_env.envs.shapes import hand_setup
+from benchmarks.common import OUT, BudgetExceeded, median_time, parser, table, time_limit, write
+from grasp_env.planning import centred_hand
 
 DQ = 0.01  #: finger increment of the closing motion (rad per move)
 SOLVERS = ("fast", "highs")
@@ -74,7 +73,7 @@ def random_path(scene: str, seed: int, moves: int) -> Case:
             -rng.uniform(0.0, 0.12, moves),
         ]
     )
-    return Case(f"{scene} path (seed {seed})", scene, hand_setup(sc) + np.cumsum(steps, axis=0))
+    return Case(f"{scene} path (seed {seed})", scene, centred_hand(sc) + np.cumsum(steps, axis=0))
 
 
 @functools.cache
@@ -89,7 +88,7 @@ def simulate(case: Case, **sim_kwargs) -> tuple[np.ndarray, int, int]:
     if case.targets is None:
         state, moves = closing_motion(sim, case.dq)
         return state.object_pose[None, :], moves, len(state.events)
-    state = sim.settle(sim.scene.object.start_pose, hand_setup(sim.scene))
+    state = sim.settle(sim.scene.object.start_pose, centred_hand(sim.scene))
     poses, events = [], len(state.events)
     for target in case.targets:
         state = sim.move_hand(state, palm=target[:3], fingers=target[3:])
@@ -246,10 +245,8 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="a small grid (about 15 s)")
-    ap.add_argument("--out", type=Path, default=OUT / "work_precision.md")
-    args = ap.parse_args(argv)
+    quick = "a small grid (about 15 s)"
+    args = parser("benchmarks.work_precision", __doc__, "work_precision.md", quick).parse_args(argv)
     run(args.quick, args.out)
     return 0
 

@@ -136,7 +136,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         formatter_class=HelpFormatter,
     )
     parser.add_argument(
-        "--scene", required=True, help="a bundled scene name or a path to a scene YAML file"
+        "--scene",
+        "--scenes",
+        dest="scene",
+        required=True,
+        help="a bundled scene name or a path to a scene YAML file",
     )
     try:
         args = parser.parse_args(argv)
@@ -145,7 +149,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         scene = grasp_env.load_scene(args.scene)
     except (SceneError, ValueError, TypeError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: --scene {args.scene!r}: {exc}", file=sys.stderr)
         return 2
     report(scene, sys.stdout)
     return 0

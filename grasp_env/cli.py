@@ -9,10 +9,17 @@ from pathlib import Path
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """``--help`` with each option's default shown, except where there is none to show (a
-    default of None, False or empty: the option's help says what happens without it)."""
+    default of None, False or empty: the option's help says what happens without it); a
+    default of 0 is shown."""
 
     def _get_help_string(self, action: argparse.Action) -> str | None:
-        if action.default in (None, False, [], ()) or action.default is argparse.SUPPRESS:
+        default = action.default
+        if (
+            default is None
+            or default is False
+            or default in ([], ())
+            or default is argparse.SUPPRESS
+        ):
             return action.help
         return super()._get_help_string(action)
 

@@ -260,8 +260,21 @@ def convex_polygon(raw: Any, name: str, width: float | None = None) -> np.ndarra
     if geo.polygon_area(v) < 0:
         raise SceneError(f"{name} are clockwise; give them counter-clockwise: {v.tolist()}")
     if not geo.is_convex_ccw(v) or not geo.turns_once(v):
-        raise SceneError(f"{name} do not form a strictly convex polygon: {v.tolist()}")
+        raise SceneError(f"{name} do not form a strictly convex polygon: {_convexity_fault(v)}")
     return v
+
+
+def _convexity_fault(v: np.ndarray) -> str:
+    """Where the counter-clockwise polygon ``v`` fails to be strictly convex: the first vertex
+    whose edges do not turn left, or that it winds round more than once."""
+    d = geo.edge_vectors(v)
+    turn = geo.cross2(d, geo.following(d))
+    scale = geo.norms(d) * geo.norms(geo.following(d))
+    for k in np.flatnonzero(turn <= 1e-12 * scale):
+        i = (int(k) + 1) % len(v)
+        bend = "turn right" if turn[k] < 0 else "run straight on"
+        return f"its edges {bend} at vertex [{i}] {v[i].tolist()}; vertices: {v.tolist()}"
+    return f"it winds round more than once (a star polygon); vertices: {v.tolist()}"
 
 
 def _object(d: Any, width: float) -> ObjectSpec:
@@ -429,7 +442,7 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
         names = bundled_scenes()
         if spec not in names:
             raise SceneError(
-                f"scene {spec!r} is not a bundled scene; bundled: {names} (a file is read "
+                f"not a bundled scene; bundled: {names} (a file is read "
                 f"only from a path with a separator or a .yaml/.yml suffix, e.g. './{spec}')"
             )
         path = SCENES_DIR.joinpath(f"{spec}.yaml")

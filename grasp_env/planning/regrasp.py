@@ -26,6 +26,7 @@ replacement, so the result is still a chain of simulator moves that ends in the 
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -35,6 +36,11 @@ import numpy as np
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State
+
+#: Progress of the search (every :data:`PROGRESS_MOVES` moves) at INFO level.
+log = logging.getLogger(__name__)
+#: Moves between two progress lines.
+PROGRESS_MOVES = 2000
 
 #: A hand move: the state reached from ``state`` by the hand increment ``dh`` (shape (5,)),
 #: or None when it is refused (the simulator cannot follow it, or the caller's rules).
@@ -185,6 +191,8 @@ def explore_lift(
                 if moves >= max_moves:
                     break
                 moves += 1
+                if moves % PROGRESS_MOVES == 0:
+                    log.info("  explored %d of %d moves (%d cells)", moves, max_moves, len(archive))
                 h = state.hand + dh
                 if (
                     h[1] > y_max

@@ -626,15 +626,32 @@ def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     training = lc.training_success(run, 100)
     assert [edge for edge, _ in training] == [100, 200][: len(training)]
     with pytest.raises(SystemExit):
+        lc.main([str(tmp_path / "missing"), "--out", str(tmp_path / "x")])
+    assert "no such folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
         lc.main([str(tmp_path), "--out", str(tmp_path / "x")])
-    assert "not a run folder with checkpoints" in capsys.readouterr().err
-    # seeds run side by side in log folders of their own: same folder name, kept apart
-    twin = tmp_path / "other" / run.name
+    assert "is not a zoo run folder" in capsys.readouterr().err
+    early = tmp_path / "early" / run.name  # a run that has saved no checkpoint yet
+    shutil.copytree(run, early, ignore=shutil.ignore_patterns("rl_model_*"))
+    with pytest.raises(SystemExit):
+        lc.main([str(early), "--out", str(tmp_path / "x")])
+    assert "no checkpoints yet" in (err := capsys.readouterr().err) and "--save-freq" in err
+    # seeds run side by side in log folders of their own: same folder name, labelled by seed
+    twin = tmp_path / "seed1" / run.name
     shutil.copytree(run, twin)
+    stats = json.loads((twin / "train_stats.json").read_text())
+    (twin / "train_stats.json").write_text(json.dumps({**stats, "seed": stats["seed"] + 1}))
     out = tmp_path / "two"
     lc.main([str(run), str(twin), "--shapes", "1", "--every", "256", "--out", str(out)])
     rows = list(csv.DictReader(open(out / "learning_curves.csv")))
-    assert [(r["run"], int(r["steps"])) for r in rows] == [(str(run), 256), (str(twin), 256)]
+    seed = stats["seed"]
+    assert [(r["run"], int(r["steps"])) for r in rows] == [
+        (f"seed {seed}", 256),
+        (f"seed {seed + 1}", 256),
+    ]
+    # no seeds to tell them apart: the log folders do, without the zoo's folders
+    a, b = (tmp_path / name / "ppo" / run.name for name in ("a", "b"))
+    assert lc.run_labels([a, b]) == ["a", "b"]
     with pytest.raises(SystemExit):
         lc.main([str(run), str(run), "--out", str(tmp_path / "y")])
     assert "given twice" in capsys.readouterr().err

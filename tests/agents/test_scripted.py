@@ -19,6 +19,7 @@ import yaml
 from image_checks import ink_runs
 
 import grasp_env
+from agents import scripted
 from agents.scripted import EXIT_FAILED, EXIT_NOT_TIPPABLE, ScriptedPolicy, main
 from grasp_env.envs.shapes import scene_to_dict
 from grasp_env.planning import centred_hand
@@ -44,10 +45,18 @@ def fig13_out(tmp_path_factory):
     old = Path.cwd()
     os.chdir(cwd)
     try:
-        assert main(["--scene", "fig13", "--out", "fig13"]) == 0
+        assert main(["--scenes", "fig13", "--out", "fig13"]) == 0
     finally:
         os.chdir(old)
     return cwd / "fig13"
+
+
+def test_cli_counts_the_steps_to_closure_of_the_plan_and_of_the_env(fig13_out, capsys):
+    # the plan counts from its placement (fingers closed), the env from the scene's open hand
+    plan = json.loads((fig13_out / "plan.json").read_text())
+    assert plan["form_closure_step"] == 18
+    scene = grasp_env.load_scene("fig13")
+    assert scripted.env_closure_step(scripted.planning.plan_grasp(scene), scene) == (9, 27)
 
 
 def test_cli_writes_every_output(fig13_out, capsys):

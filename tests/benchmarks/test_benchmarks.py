@@ -34,7 +34,15 @@ from benchmarks.__main__ import main as run_suite
             id="work_precision",
         ),
         pytest.param(lambda out: profile_step.run(True, out, steps=3, closing=False), id="profile"),
-        pytest.param(lambda out: memory.run(True, out, steps=2, repeat=1, workers=2), id="memory"),
+        pytest.param(
+            lambda out: memory.run(True, out, steps=2, repeat=1, workers=2, cold=False),
+            id="memory",
+        ),
+        pytest.param(
+            lambda out: memory.run(True, out, steps=2, repeat=1, workers=2, cold=True),
+            id="memory_cold",
+            marks=pytest.mark.slow,  # compiles everything in a fresh NUMBA_CACHE_DIR: minutes
+        ),
         pytest.param(lambda out: step_parts.run(True, out, steps=30), id="step_parts"),
         pytest.param(lambda out: edge_probe.run(1, 3, 0, out), id="edge_probe"),
         pytest.param(

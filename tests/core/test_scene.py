@@ -869,10 +869,21 @@ def test_infinite_torque_limits_are_accepted() -> None:
 
 
 def test_unknown_bundled_name_is_refused() -> None:
-    with pytest.raises(SceneError, match=r"scene 'fig14' is not a bundled scene") as info:
-        load_scene("fig14")
+    with pytest.raises(SceneError, match=r"^not a bundled scene") as info:
+        load_scene("fig14")  # callers name the value: "scene 'fig14': not a bundled scene"
     assert all(name in str(info.value) for name in SCENE_FILES), "it lists the bundled scenes"
     assert isinstance(info.value, ValueError)
+    import gymnasium as gym
+
+    with pytest.raises(ValueError, match=r"^scene 'fig14': not a bundled scene;"):
+        gym.make("FrictionlessGrasp-v0", scene="fig14")
+
+
+def test_a_non_convex_polygon_is_refused_at_the_vertex_at_fault() -> None:
+    d = copy.deepcopy(BASE)
+    d["object"]["vertices"] = [[0.0, 0.0], [0.2, 0.0], [0.1, 0.02], [0.2, 0.1], [0.0, 0.1]]
+    with pytest.raises(SceneError, match=r"turn right at vertex \[2\] \[0\.1, 0\.02\]"):
+        load_scene(d)
 
 
 # A string without a path separator or a .yaml/.yml suffix is a bundled name, whatever the
