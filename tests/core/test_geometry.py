@@ -205,12 +205,12 @@ def test_turn_to_contact_matches_a_scan_of_the_overlap(ccw: bool) -> None:
             continue
         grid = np.linspace(0.0, 2.0 * math.pi, 1201)
         depth = functools.partial(_turned_depth, a, b, sign)
-        inside = [t for t in grid if depth(t) > 0]
+        first = next((t for t in grid if depth(t) > 0), None)  # the scan stops there
         turn = geo.turn_to_contact(a, centre, b, ccw=ccw)
-        if not inside:
+        if first is None:
             assert turn == math.inf or depth(turn) > -1e-9  # at most a graze the scan missed
             continue
-        lo, hi = inside[0] - grid[1], inside[0]
+        lo, hi = first - grid[1], first
         for _ in range(60):
             mid = 0.5 * (lo + hi)
             lo, hi = (lo, mid) if depth(mid) > 0 else (mid, hi)
