@@ -1,17 +1,20 @@
-"""Checks of ``FrictionlessGrasp-v0``'s constructor arguments and reset options: errors name
-the argument and show the value."""
+"""Checks of what ``FrictionlessGrasp-v0`` and its batched env take in: constructor
+arguments, scenes, reset options and actions. Errors name the argument and show the value."""
 
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from grasp_env.arguments import number, short
+from grasp_env.arguments import number, real_vector, short
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import LENGTH_RANGE, Scene
-from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES
+from grasp_env.core.scene_loading import load_scene
+from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup
 from grasp_env.kernel.observation import PALM_THETA_MAX, PALM_X_RANGE, PALM_Y_MAX
 
 #: Largest aspect ratio of the shape randomizer: a 1:100 shape is already a thin plate.
@@ -102,3 +105,128 @@ def shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float]
             )
         out[key] = (lo, hi)
     return out
+
+
+def action_values(action: Any, size: int) -> list[float]:
+    """An action as Python floats clipped into [-1, 1]; refused (``ValueError`` naming
+    ``action``) unless it is finite real numbers of shape ``(size,)``."""
+    if (
+        type(action) is np.ndarray
+        and action.dtype.kind == "f"
+        and action.dtype.itemsize <= 8  # tolist() gives Python floats
+        and action.shape == (size,)
+    ):
+        values = action.tolist()  # the common case, checked as real_vector would
+        total = sum(values)  # finite only if every value is (or on overflow: see below)
+        if total - total == 0.0 and -1.0 <= min(values) and max(values) <= 1.0:
+            return values  # already in the action space
+        if not all(map(math.isfinite, values)):
+            raise ValueError(f"action must be finite, got {short(action)}")
+    else:
+        values = real_vector(action, "action", size).tolist()
+    return [min(max(x, -1.0), 1.0) for x in values]
+
+
+def batch_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """A batch of actions as float64, refused (``ValueError`` naming ``actions``) unless it is
+    finite real numbers of ``shape`` (the kernel clips them into [-1, 1])."""
+    actions = np.asarray(actions)
+    if actions.shape != shape or actions.dtype.kind not in "fiu":
+        raise ValueError(f"actions must be real numbers of shape {shape}, got {actions!r}")
+    actions = actions.astype(np.float64)
+    if not np.isfinite(actions).all():
+        raise ValueError(f"actions must be finite, got {actions.tolist()}")
+    return actions
+
+
+def env_scene(spec: Any, name: str, max_vertices: int, start: str, contact_tol: float) -> Scene:
+    """The scene ``spec`` (argument ``name``) loaded and checked for the env: at most
+    ``max_vertices`` vertices, its palm inside the palm workspace and, for a start other than
+    ``"scene"``, room for the pre-liftoff hand set-up."""
+    if not isinstance(spec, str | os.PathLike | dict | Scene):
+        raise TypeError(
+            f"{name} must be a bundled name, a path, a dict or a Scene, got {short(spec)}"
+        )
+    try:
+        scene = load_scene(spec)
+    except ValueError as exc:
+        raise ValueError(f"{name} {spec_name(spec)}: {exc}") from None
+    n = len(scene.object.vertices_B)
+    if n > max_vertices:
+        raise ValueError(
+            f"{name} {spec_name(spec)}: the object has {n} vertices, more than "
+            f"max_vertices={max_vertices}"
+        )
+    problem = palm_problem(scene, scene.palm.pose)
+    if problem:
+        raise ValueError(f"{name} {spec_name(spec)}: palm.pose {problem}")
+    if start != "scene":
+        problem = placement_problem(scene, scene.object.start_pose, hand_setup(scene), contact_tol)
+        if problem:
+            raise ValueError(
+                f"{name} {spec_name(spec)}: start={start!r} needs the pre-liftoff hand "
+                f"set-up, but there {problem}"
+            )
+    return scene
+
+
+def shape_problem(scene: Scene, contact_tol: float) -> str | None:
+    """Why a random shape's scene cannot start an episode (None if it can): its palm outside
+    the palm workspace, or its hand set-up touching the object closer than the simulator's
+    contact tolerance allows (the scene loader checks at the default one)."""
+    problem = palm_problem(scene, scene.palm.pose)
+    if problem:
+        return f"palm.pose {problem}"
+    return placement_problem(scene, scene.object.start_pose, scene.initial_hand, contact_tol)
+
+
+#: The keys of ``reset(options=...)``.
+OPTION_KEYS = ("scene", "palm", "fingers")
+
+
+def reset_options(options: Any, load: Callable[[Any, str], Scene]) -> dict[str, Any]:
+    """``reset``'s ``options`` checked: the scene loaded by ``load(spec, name)``, the palm
+    pose and finger angles as arrays."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(f"options must be a dict or None, got {options!r}")
+    unknown = sorted(set(options) - set(OPTION_KEYS), key=str)
+    if unknown:
+        raise ValueError(f"options: unknown key(s) {unknown}; allowed: {list(OPTION_KEYS)}")
+    out: dict[str, Any] = {}
+    if options.get("scene") is not None:
+        try:
+            out["scene"] = load(options["scene"], "options['scene']")
+        except TypeError as exc:  # a refused reset argument is a ValueError, as for actions
+            raise ValueError(str(exc)) from None
+    for key, size in (("palm", 3), ("fingers", 2)):
+        if options.get(key) is not None:
+            out[key] = real_vector(options[key], f"options[{key!r}]", size)
+    return out
+
+
+def option_hand(scene: Scene, opts: dict[str, Any], contact_tol: float) -> np.ndarray:
+    """The start hand of checked reset options ``opts`` (missing parts from the scene),
+    refused outside the palm workspace or the joint limits, or overlapping the object or the
+    support."""
+    h = scene.initial_hand.copy()
+    if "palm" in opts:
+        problem = palm_problem(scene, opts["palm"])
+        if problem:
+            raise ValueError(f"options['palm'] {problem}")
+        h[:3] = opts["palm"]
+    if "fingers" in opts:
+        lim = scene.joint_limits
+        q = opts["fingers"]
+        if np.any(q < lim[:, 0]) or np.any(q > lim[:, 1]):
+            raise ValueError(
+                f"options['fingers'] {q.tolist()} is outside the joint limits {lim.tolist()}"
+            )
+        h[3:] = q
+    problem = placement_problem(scene, scene.object.start_pose, h, contact_tol)
+    if problem:
+        raise ValueError(
+            f"options palm={h[:3].tolist()}, fingers={h[3:].tolist()} refused: {problem}"
+        )
+    return h

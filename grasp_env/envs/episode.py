@@ -25,6 +25,9 @@ from grasp_env.simulator import Simulator
 
 #: Columns of a contact's row in the kernel's ``rows``: point, normal, gap, force.
 ROW_SIZE = 6
+#: The info keys of the reward terms, in the kernel's order (:data:`grasp_env.kernel.step.
+#: REWARD_TERMS`).
+REWARD_KEYS = tuple(f"reward_{term}" for term in kernel.REWARD_TERMS)
 
 
 def env_settings(

@@ -1,43 +1,46 @@
 """``FrictionlessGrasp-v0``: pick a convex polygon up off a flat support without friction.
 
-The class docstring is the env's documentation, in Gymnasium's style (spaces, starts,
-rewards, episode end, arguments): about a third of this module, which is why it is longer
-than the others. Its observation layout is in :mod:`grasp_env.envs.observation`, the checks
-of its arguments in :mod:`grasp_env.envs.checks`.
+The task on :class:`grasp_env.envs.base.GraspEnvBase` (the simulator, actions,
+``simulate_action``, accessors, rendering), as Gymnasium's MuJoCo tasks sit on ``MujocoEnv``:
+its arguments, starts and resets, step, info, and in the class docstring its documentation in
+Gymnasium's style (spaces, starts, rewards, episode end, arguments), about half of this
+module. Its observation layout is in :mod:`grasp_env.kernel.observation`, its reward and
+episode end in :mod:`grasp_env.kernel.step`, the checks of its arguments in
+:mod:`grasp_env.envs.checks`.
 """
 
 from __future__ import annotations
 
 import math
-import os
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
-from grasp_env.arguments import integer, number, real_vector, short
+from grasp_env.arguments import integer, number, short
 from grasp_env.core.scene import Scene
-from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import State
+from grasp_env.envs.base import GraspEnvBase
 from grasp_env.envs.checks import (
+    env_scene,
     flag,
     numbers,
     one_of,
-    palm_problem,
+    option_hand,
     placement_problem,
+    reset_options,
+    shape_problem,
     shape_ranges,
-    spec_name,
 )
-from grasp_env.envs.episode import Episode, env_settings, episode_constants
+from grasp_env.envs.episode import REWARD_KEYS, env_settings
 from grasp_env.envs.shapes import hand_setup, random_shape_scene
 from grasp_env.errors import ComputationError
 from grasp_env.kernel import step as kernel
 from grasp_env.kernel.observation import observation_bounds
 from grasp_env.planning import centred_placement, first_placement
-from grasp_env.render import Renderer
-from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator, own_state
+from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator
 
 #: Largest perturbations of the ``"random"`` start: palm x and y (palm widths), palm angle
 #: (rad), finger angles (rad).
@@ -48,18 +51,15 @@ _STARTS = ("scene", "preliftoff", "random", "placement")
 #: The pre-liftoff placement of each start that has one.
 _PLACEMENTS = {"preliftoff": centred_placement, "random": centred_placement,
                "placement": lambda sim: first_placement(sim)[0]}  # fmt: skip
-_OPTION_KEYS = ("scene", "palm", "fingers")
 #: The reward's terms, in the order of ``info["reward_<term>"]``.
 REWARD_TERMS = kernel.REWARD_TERMS
 #: Largest reward weight: a step's reward stays far from the float range.
 MAX_REWARD_WEIGHT = 1e6
 #: Largest ``max_vertices`` (the observation has 3 entries per vertex).
 MAX_VERTICES = 1000
-#: Largest ``render_width`` and ``render_height``, in pixels.
-MAX_RENDER_SIZE = 16384
 
 
-class FrictionlessGraspEnv(gym.Env):
+class FrictionlessGraspEnv(GraspEnvBase):
     r"""Frictionless enveloping grasping in the plane (Trinkle, Abel & Paul, IJRR 1988).
 
     ## Description
@@ -299,8 +299,6 @@ class FrictionlessGraspEnv(gym.Env):
       (the hand starts at the planner's first placement for each shape: lift and hold).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
-
     def __init__(
         self,
         scene: Any = "fig13",
@@ -347,13 +345,10 @@ class FrictionlessGraspEnv(gym.Env):
             contact_tol, "contact_tol", *CONTACT_TOL_RANGE, lo_open=False, hi_open=True
         )
         self.max_vertices = integer(max_vertices, "max_vertices", 3, TypeError, MAX_VERTICES)
-        if render_mode is not None:
-            one_of(render_mode, "render_mode", self.metadata["render_modes"], "None or ")
-        self.render_mode = render_mode
-        self.render_size = (
-            integer(render_width, "render_width", 16, most=MAX_RENDER_SIZE),
-            integer(render_height, "render_height", 16, most=MAX_RENDER_SIZE),
-        )
+        super().__init__(
+            action_size=5 if self.palm_control else 2, render_mode=render_mode,
+            render_width=render_width, render_height=render_height,
+        )  # fmt: skip
 
         specs = list(scene) if isinstance(scene, list | tuple) else [scene]
         if not specs:
@@ -372,7 +367,6 @@ class FrictionlessGraspEnv(gym.Env):
         #: pool's entries (by ``(index, entry)``), made once.
         self._sims: dict[Any, Simulator] = {}
         self._starts: dict[Any, tuple[State, str | None]] = {}
-        self.action_space = spaces.Box(-1.0, 1.0, (5 if self.palm_control else 2,), np.float32)
         low, high = observation_bounds(self.max_vertices, self.hand_features)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._obs_low, self._obs_high = low, high
@@ -382,135 +376,14 @@ class FrictionlessGraspEnv(gym.Env):
             max_vertices=self.max_vertices, reward_weights=self.reward_weights,
         )  # fmt: skip
 
-        self._renderer = None
-        self._episode: Episode | None = None
-
-    # ------------------------------------------------------------------ public accessors
-    @property
-    def state(self) -> State | None:
-        """The current simulator state (immutable; None before the first :meth:`reset`).
-
-        Holds the hand configuration, the object's pose, the contacts with their forces and the
-        last move's events (:class:`grasp_env.State`). Read-only: the env moves on only through
-        :meth:`reset` and :meth:`step`.
-        """
-        return None if self._episode is None else self._episode.state
-
-    @property
-    def simulator(self) -> Simulator | None:
-        """The :class:`grasp_env.Simulator` of the current episode (None before the first
-        :meth:`reset`). A model for planners: its ``move_hand`` and ``settle`` return new
-        states and leave the env as it is."""
-        return None if self._episode is None else self._episode.sim
-
-    @property
-    def scene(self) -> Scene | None:
-        """The :class:`grasp_env.Scene` of the current episode (None before the first
-        :meth:`reset`): one of :attr:`scenes`, the ``options["scene"]`` of the reset, or the
-        random shape drawn with ``shape_randomizer``."""
-        return None if self._episode is None else self._episode.state.scene
-
     # ------------------------------------------------------------------ validation
     def _load(self, spec: Any, name: str) -> Scene:
-        if not isinstance(spec, str | os.PathLike | dict | Scene):
-            raise TypeError(
-                f"{name} must be a bundled name, a path, a dict or a Scene, got {short(spec)}"
-            )
-        try:
-            scene = load_scene(spec)
-        except ValueError as exc:
-            raise ValueError(f"{name} {spec_name(spec)}: {exc}") from None
-        n = len(scene.object.vertices_B)
-        if n > self.max_vertices:
-            raise ValueError(
-                f"{name} {spec_name(spec)}: the object has {n} vertices, more than "
-                f"max_vertices={self.max_vertices}"
-            )
-        problem = palm_problem(scene, scene.palm.pose)
-        if problem:
-            raise ValueError(f"{name} {spec_name(spec)}: palm.pose {problem}")
-        if self.start != "scene":
-            problem = placement_problem(
-                scene, scene.object.start_pose, hand_setup(scene), self.contact_tol
-            )
-            if problem:
-                raise ValueError(
-                    f"{name} {spec_name(spec)}: start={self.start!r} needs the pre-liftoff hand "
-                    f"set-up, but there {problem}"
-                )
-        return scene
+        """:func:`grasp_env.envs.checks.env_scene` with the env's arguments."""
+        return env_scene(spec, name, self.max_vertices, self.start, self.contact_tol)
 
     def _shape_problem(self, scene: Scene) -> str | None:
-        """Why a random shape's scene cannot start an episode (None if it can): its palm
-        outside the palm workspace, or its hand set-up touching the object closer than the
-        simulator's contact tolerance allows (the scene loader checks at the default one)."""
-        problem = palm_problem(scene, scene.palm.pose)
-        if problem:
-            return f"palm.pose {problem}"
-        return placement_problem(
-            scene, scene.object.start_pose, scene.initial_hand, self.contact_tol
-        )
-
-    def _check_options(self, options: Any) -> dict[str, Any]:
-        if options is None:
-            return {}
-        if not isinstance(options, dict):
-            raise TypeError(f"options must be a dict or None, got {options!r}")
-        unknown = sorted(set(options) - set(_OPTION_KEYS), key=str)
-        if unknown:
-            raise ValueError(f"options: unknown key(s) {unknown}; allowed: {list(_OPTION_KEYS)}")
-        out: dict[str, Any] = {}
-        if options.get("scene") is not None:
-            try:
-                out["scene"] = self._load(options["scene"], "options['scene']")
-            except TypeError as exc:  # a refused reset argument is a ValueError, as for actions
-                raise ValueError(str(exc)) from None
-        for key, size in (("palm", 3), ("fingers", 2)):
-            if options.get(key) is not None:
-                out[key] = real_vector(options[key], f"options[{key!r}]", size)
-        return out
-
-    def _check_hand(self, scene: Scene, opts: dict[str, Any]) -> np.ndarray:
-        h = scene.initial_hand.copy()
-        if "palm" in opts:
-            problem = palm_problem(scene, opts["palm"])
-            if problem:
-                raise ValueError(f"options['palm'] {problem}")
-            h[:3] = opts["palm"]
-        if "fingers" in opts:
-            lim = scene.joint_limits
-            q = opts["fingers"]
-            if np.any(q < lim[:, 0]) or np.any(q > lim[:, 1]):
-                raise ValueError(
-                    f"options['fingers'] {q.tolist()} is outside the joint limits {lim.tolist()}"
-                )
-            h[3:] = q
-        problem = placement_problem(scene, scene.object.start_pose, h, self.contact_tol)
-        if problem:
-            raise ValueError(
-                f"options palm={h[:3].tolist()}, fingers={h[3:].tolist()} refused: {problem}"
-            )
-        return h
-
-    def _check_action(self, action: Any) -> list[float]:
-        """The action as Python floats clipped into [-1, 1]; refused (``ValueError``) unless it
-        is finite real numbers of the action space's shape."""
-        size = self.action_space.shape[0]
-        if (
-            type(action) is np.ndarray
-            and action.dtype.kind == "f"
-            and action.dtype.itemsize <= 8  # tolist() gives Python floats
-            and action.shape == (size,)
-        ):
-            values = action.tolist()  # the common case, checked as real_vector would
-            total = sum(values)  # finite only if every value is (or on overflow: see below)
-            if total - total == 0.0 and -1.0 <= min(values) and max(values) <= 1.0:
-                return values  # already in the action space
-            if not all(map(math.isfinite, values)):
-                raise ValueError(f"action must be finite, got {short(action)}")
-        else:
-            values = real_vector(action, "action", size).tolist()
-        return [min(max(x, -1.0), 1.0) for x in values]
+        """:func:`grasp_env.envs.checks.shape_problem` at the env's contact tolerance."""
+        return shape_problem(scene, self.contact_tol)
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -518,7 +391,7 @@ class FrictionlessGraspEnv(gym.Env):
         or a simulator error settling the hand they give) changes nothing: the episode in
         progress, if any, and the random generator stay as they were. So everything that can
         fail runs first, drawing from a copy of the generator, and is then committed."""
-        opts = self._check_options(options)
+        opts = reset_options(options, self._load)
         try:
             if isinstance(seed, bool | np.bool_):
                 raise gym.error.Error  # seeding would take it for 0 or 1
@@ -526,10 +399,7 @@ class FrictionlessGraspEnv(gym.Env):
         except gym.error.Error:
             raise ValueError(f"seed must be None or an int >= 0, got {short(seed)}") from None
         sim, state, error = self._start(rng, opts)
-        consts = episode_constants(
-            state.scene, state, self.max_finger_step, self.max_palm_step, sim.model.rho
-        )
-        episode = Episode(sim, state, consts, self._settings, len(self._obs_low))
+        episode = self._new_episode(sim, state)
 
         super().reset(seed=seed)
         self.np_random.bit_generator.state = rng.bit_generator.state  # the draws made above
@@ -565,7 +435,8 @@ class FrictionlessGraspEnv(gym.Env):
             sim = self._sims[key] if key is not None else sim
             scene = sim.scene
         if "palm" in opts or "fingers" in opts:
-            return sim, sim.settle(scene.object.start_pose, self._check_hand(scene, opts)), None
+            hand = option_hand(scene, opts, self.contact_tol)
+            return sim, sim.settle(scene.object.start_pose, hand), None
         state, error = self._first_state(sim, key)
         if self.start == "random":
             state = self._perturb(sim, state, rng)
@@ -637,40 +508,6 @@ class FrictionlessGraspEnv(gym.Env):
             out["sim_error"] = error
         return obs, reward, terminated, truncated, out
 
-    def simulate_action(self, state: State, action: Any) -> State:
-        """The state ``action`` leads to from ``state``, without changing the env.
-
-        Computed exactly as :meth:`step` computes it (same action checks and clipping, same
-        simulator call), so that what a planner acting through the env plans is what the env
-        then does, to the last bit: for the env's current state,
-        ``simulate_action(env.state, a)`` is the state ``step(a)`` moves to. Use it with
-        :attr:`state` (e.g. the scripted policy's exploratory lifting searches on it).
-
-        Args:
-            state: a state of the current episode's scene (:attr:`state` or one returned by
-                this method).
-            action: as for :meth:`step`: real numbers of the action space's shape, clipped
-                into [-1, 1].
-
-        Returns:
-            The new state (the env's own state is unchanged).
-
-        Raises:
-            ValueError: a bad action (as :meth:`step`).
-            TypeError: ``state`` is not a :class:`grasp_env.State`.
-            ValueError: ``state`` is of another scene than the current episode's.
-            RuntimeError: called before the first :meth:`reset`.
-            SimulationError, SolverError: where :meth:`step` would end the episode with
-                ``info["sim_error"]``.
-        """
-        a = self._check_action(action)
-        if self._episode is None:
-            raise RuntimeError("call reset() before simulate_action()")
-        sim = self._episode.sim
-        own_state(state, sim.scene)
-        real_vector(state.hand, "state.hand", 5)  # the move's target is made from it
-        return self._episode.simulate(state, np.array(a), self._settings)
-
     # ------------------------------------------------------------------ observation / info
     def _observation(self) -> np.ndarray:
         return self._episode.observation(self._settings, self._obs_low, self._obs_high)
@@ -696,52 +533,11 @@ class FrictionlessGraspEnv(gym.Env):
             "events": [e.kind for e in state.events],
             "is_success": bool(an[kernel.A_SUCCESS]),
         }
-        for i, key in enumerate(_REWARD_KEYS):
+        for i, key in enumerate(REWARD_KEYS):
             info[key] = 0.0 if step_info is None else float(step_info[kernel.I_TERMS + i])
         if self.always_compute_grip:
             info["grip_objective"] = grip
         return info
-
-    # ------------------------------------------------------------------ rendering
-    def render(self):
-        if self.render_mode is None:
-            gym.logger.warn(
-                "render() called without a render_mode; make the env with "
-                'render_mode="rgb_array" or "human"'
-            )
-            return None
-        if self._episode is None:
-            raise RuntimeError("call reset() before render()")
-        if self._renderer is None:
-            self._renderer = Renderer(*self.render_size, fps=self.metadata["render_fps"])
-        frame = self._renderer.draw(self._episode.state, self._caption())
-        if self.render_mode == "human":
-            self._renderer.show(frame)
-            return None
-        return frame
-
-    def _caption(self) -> str:
-        episode = self._episode
-        scene, an = episode.state.scene, episode.an
-        text = f"{scene.name} | step {int(episode.ep[kernel.E_STEPS])}"
-        if an[kernel.A_CLOSURE]:
-            text += f" | form closure | y* = {an[kernel.A_GRIP] / scene.object_weight:.2f} W"
-        else:
-            text += " | no form closure"
-        return text
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
-    def __getstate__(self) -> dict:
-        d = self.__dict__.copy()
-        d["_renderer"] = None  # pygame objects do not pickle; a copy renders afresh
-        return d
-
-
-_REWARD_KEYS = tuple(f"reward_{k}" for k in REWARD_TERMS)
 
 
 # ---------------------------------------------------------------------- helpers

@@ -26,7 +26,8 @@ from gymnasium.vector.utils import batch_space
 from numba import typed
 
 from grasp_env.arguments import integer
-from grasp_env.envs.episode import Episode
+from grasp_env.envs.checks import batch_actions
+from grasp_env.envs.episode import REWARD_KEYS, Episode
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.kernel import step as kernel
 from grasp_env.kernel.batch import step_batch
@@ -40,7 +41,7 @@ INFO_FLAGS = {
     "dropped": kernel.I_DROPPED,
 }
 INFO_VALUES = {"grip_force": kernel.I_GRIP_FORCE} | {
-    f"reward_{term}": kernel.I_TERMS + i for i, term in enumerate(kernel.REWARD_TERMS)
+    key: kernel.I_TERMS + i for i, key in enumerate(REWARD_KEYS)
 }
 
 
@@ -199,13 +200,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         """One step of every sub-env (see the module docstring for the autoreset)."""
         if self._models is None:
             raise RuntimeError("call reset() before step()")
-        actions = np.asarray(actions)
-        shape = (self.num_envs, *self.single_action_space.shape)
-        if actions.shape != shape or actions.dtype.kind not in "fiu":
-            raise ValueError(f"actions must be real numbers of shape {shape}, got {actions!r}")
-        actions = actions.astype(np.float64)
-        if not np.isfinite(actions).all():
-            raise ValueError(f"actions must be finite, got {actions.tolist()}")
+        actions = batch_actions(actions, (self.num_envs, *self.single_action_space.shape))
         numba.set_num_threads(self.threads)
         step_batch(
             self._models, self._consts, self._settings, self._q, self._h, self._keys, self._rows,
