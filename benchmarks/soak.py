@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.common import git_commit
 from grasp_env.cli import HelpFormatter
 from grasp_env.testing import EQ_RTOL, check_state
 
@@ -397,7 +398,9 @@ def run_soak(
     steps: int, shapes: int, workers: int, seed: int, checkpoint: Path | None = None
 ) -> tuple[list[dict], float]:
     """Run (or resume) a soak; returns the per-shape records and the wall time of this call
-    (a resumed soak times only the shapes it runs)."""
+    (a resumed soak times only the shapes it runs). Each record names the code it ran on
+    (``"code"``, the commit when this call starts), so a soak resumed on other code says so."""
+    code = git_commit()
     per_shape = [steps // shapes + (1 if i < steps % shapes else 0) for i in range(shapes)]
     done: dict[int, dict] = {}
     if checkpoint is not None and checkpoint.exists():
@@ -412,6 +415,7 @@ def run_soak(
         ctx = mp.get_context("spawn" if os.name == "nt" else "fork")
         try:
             for k, rec in enumerate(_results(jobs, workers, ctx)):
+                rec["code"] = code
                 done[rec["index"]] = rec
                 if fh is not None:
                     fh.write(json.dumps(rec) + "\n")
@@ -457,22 +461,15 @@ def summarise(records: list[dict]) -> dict[str, Any]:
     return out
 
 
-def _revision() -> str:
-    """The repository's commit, with ``+dirty`` when tracked files have uncommitted changes."""
-    import subprocess
-
-    root = Path(__file__).resolve().parents[1]
-    try:
-        rev = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=root, capture_output=True, text=True,
-        ).stdout.strip()  # fmt: skip
-    except OSError:
-        return "unknown"
-    return (rev or "unknown") + ("+dirty" if dirty else "")
+def _codes(records: list[dict]) -> str:
+    """The commits the shapes ran on (the checkpoint's, for a resumed soak), with counts where
+    more than one."""
+    counts: dict[str, int] = {}
+    for r in records:
+        counts[r.get("code", "unrecorded")] = counts.get(r.get("code", "unrecorded"), 0) + 1
+    if len(counts) == 1:
+        return next(iter(counts))
+    return ", ".join(f"{c} ({n} shapes)" for c, n in counts.items())
 
 
 def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, records: list) -> None:
@@ -485,7 +482,7 @@ def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, rec
         f"--workers {args.workers} --seed {args.seed}`  ",
         f"Machine: {platform.machine()}, Python {platform.python_version()}, "
         f"{os.cpu_count()} CPUs; date {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; "
-        f"code {_revision()}",
+        f"code {_codes(records)}",
         "",
         "| figure | value |",
         "| --- | --- |",
@@ -513,7 +510,7 @@ def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, rec
             "",
         ]
         by_index = {r["index"]: r for r in records}
-        for i in s["bad_shapes"][:20]:
+        for i in s["bad_shapes"]:
             r = by_index[i]
             lines.append(
                 f"- shape {i} ({r.get('kind')}, {r['steps']} steps): exceptions "
