@@ -113,8 +113,6 @@ class Simulator:
         self.model = self._build_model(size)
         self._joint_low, self._joint_high = self.scene.joint_limits.T.tolist()
         self._last: tuple = (None, _NO_KEYS)  # the last state made, and its contact keys
-        self.rho = self.model.rho
-        self.newton_tol = self.model.newton_tol
 
     @property
     def model(self) -> Model:

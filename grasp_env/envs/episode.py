@@ -21,10 +21,9 @@ from grasp_env.kernel.observation import (
     hand_block_at,
 )
 from grasp_env.mechanics.closure import reference_grip
+from grasp_env.sim import move
 from grasp_env.simulator import Simulator
 
-#: Columns of a contact's row in the kernel's ``rows``: point, normal, gap, force.
-ROW_SIZE = 6
 #: The info keys of the reward terms, in the kernel's order (:data:`grasp_env.kernel.step.
 #: REWARD_TERMS`).
 REWARD_KEYS = tuple(f"reward_{term}" for term in kernel.REWARD_TERMS)
@@ -82,7 +81,7 @@ def state_arrays(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
     """``(q, h, keys, rows)`` of a state, as the kernel takes them."""
     m = len(state.contacts)
     keys = np.array([c.key for c in state.contacts], dtype=np.int64).reshape(m, 4)
-    rows = np.empty((m, ROW_SIZE))
+    rows = np.empty((m, move.ROW_SIZE))
     for i, c in enumerate(state.contacts):
         rows[i, 0:2], rows[i, 2:4] = c.point, c.normal
         rows[i, 4], rows[i, 5] = c.gap, c.force

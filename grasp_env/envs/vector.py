@@ -31,6 +31,7 @@ from grasp_env.envs.episode import REWARD_KEYS, Episode
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.kernel import step as kernel
 from grasp_env.kernel.batch import step_batch
+from grasp_env.sim import move
 
 #: The info entries of a step, as arrays over the sub-envs, and where the kernel holds them.
 INFO_FLAGS = {
@@ -100,7 +101,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         self._consts = np.zeros((n, kernel.CONSTS))
         self._q, self._h = np.zeros((n, 3)), np.zeros((n, 5))
         self._keys = np.zeros((n, capacity, 4), dtype=np.int64)
-        self._rows = np.zeros((n, capacity, 6))
+        self._rows = np.zeros((n, capacity, move.ROW_SIZE))
         self._counts = np.zeros(n, dtype=np.int64)
         self._an = np.zeros((n, kernel.ANALYSIS))
         self._ep = np.zeros((n, kernel.EPISODE))
@@ -131,7 +132,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
     def _grow(self, m: int) -> None:
         """Room for ``m`` contacts in every row."""
         n = self.num_envs
-        keys, rows = np.zeros((n, m, 4), dtype=np.int64), np.zeros((n, m, 6))
+        keys, rows = np.zeros((n, m, 4), dtype=np.int64), np.zeros((n, m, move.ROW_SIZE))
         keys[:, : self._keys.shape[1]], rows[:, : self._rows.shape[1]] = self._keys, self._rows
         self._keys, self._rows = keys, rows
 

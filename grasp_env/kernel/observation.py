@@ -28,9 +28,8 @@ TIP_RANGE = 2.0  #: fingertip coordinates in the palm frame (``hand_features``)
 DISTANCE_MAX = 2.0  #: hand-object distances (``hand_features``)
 HAND_BODIES = ("palm", "finger1", "finger2")
 
-BODIES = geo.BODY_NAMES
 #: Each body's first entry in the observation's contact block (count, then force).
-BODY_INDEX = {name: 2 * i for i, name in enumerate(BODIES)}
+BODY_INDEX = {name: 2 * i for i, name in enumerate(geo.BODY_NAMES)}
 
 
 #: Entries of the observation's pose block (the hand, the object in the world and in the palm
@@ -39,7 +38,7 @@ POSE_ENTRIES = 13
 #: Entries of the contact block after the vertices and their mask: per body a count and a
 #: force, form closure, y*, the object's height, then (``hand_features``) the contact
 #: positions on the three hand bodies.
-CONTACT_ENTRIES = 2 * len(BODIES) + 3
+CONTACT_ENTRIES = 2 * len(geo.BODY_NAMES) + 3
 POSITION_ENTRIES = len(HAND_BODIES)
 
 
@@ -133,8 +132,8 @@ def observation_bounds(n: int, hand_features: bool = False) -> tuple[np.ndarray,
     high += [OBJECT_X_RANGE, OBJECT_Y_MAX, 1.0, 1.0, REACH, REACH, 1.0, 1.0]
     low += [-VERTEX_RANGE] * (2 * n) + [0.0] * n
     high += [VERTEX_RANGE] * (2 * n) + [1.0] * n
-    low += [0.0] * (2 * len(BODIES))
-    high += [COUNT_MAX, FORCE_MAX] * len(BODIES)
+    low += [0.0] * (2 * len(geo.BODY_NAMES))
+    high += [COUNT_MAX, FORCE_MAX] * len(geo.BODY_NAMES)
     low += [0.0, 0.0, HEIGHT_MIN]
     high += [1.0, GRIP_MAX, HEIGHT_MAX]
     if hand_features:

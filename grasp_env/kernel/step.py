@@ -111,7 +111,7 @@ def try_move(model, q, h, keys, target):
         out, log, new_keys, rows = move.run(model, q, h, target, keys, True, solves)
         return True, out, log, new_keys, rows
     except Exception:  # whatever it was, Python moves again and reports it
-        return False, np.zeros(move.OUT_SIZE), move.new_log(), keys, np.zeros((0, 6))
+        return False, np.zeros(move.OUT_SIZE), move.new_log(), keys, np.zeros((0, move.ROW_SIZE))
 
 
 @njit(cache=CACHE)
@@ -221,7 +221,7 @@ def conclude(model, consts, settings, q, h, keys, rows, an, ep, obs, low, high, 
     ctrl = -weights[5] * effort
     terms = (bonus, hold, grip, lift, drop, ctrl)
     reward = 0.0
-    for j in range(6):
+    for j in range(len(terms)):
         reward += terms[j]
         info[I_TERMS + j] = terms[j]
     ep[E_STEPS] += 1.0

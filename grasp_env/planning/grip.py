@@ -43,7 +43,7 @@ class FourContactBranch:
 
     def solve(self, q1: float, z0: np.ndarray) -> np.ndarray | None:
         sim, z = self.sim, z0.copy()
-        scale = np.array([1.0, 1.0, 1.0 / sim.rho, 1.0 / sim.size])
+        scale = np.array([1.0, 1.0, 1.0 / sim.model.rho, 1.0 / sim.size])
         unit = kin.hand_units(sim.scene)[[0, 1, 2, 4]]  # (x, y) in palm widths, angles in rad
         for _ in range(40):
             h = self.config(q1, z)
@@ -56,7 +56,7 @@ class FourContactBranch:
                 J[i, :3] = mech.V_ob(p[None], n[None], z[:2])[0]
                 if key.body == geo.FINGER2:
                     J[i, 3] = -float(geo.cross2(p - joint2, n))
-            if np.abs(F).max() <= sim.newton_tol:
+            if np.abs(F).max() <= sim.model.newton_tol:
                 return z
             try:
                 dz = np.linalg.solve(J * scale, -F) * scale

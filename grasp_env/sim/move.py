@@ -90,6 +90,7 @@ OUT_S, OUT_S_END, OUT_BLOCKED, OUT_JAMMED, OUT_UNTOUCHED = 8, 9, 10, 11, 12
 OUT_SIZE = 13
 #: Columns of the contact rows :func:`at_rest` returns, one row per contact.
 ROW_POINT, ROW_NORMAL, ROW_GAP, ROW_FORCE = slice(0, 2), slice(2, 4), 4, 5
+ROW_SIZE = 6
 
 
 @njit(cache=CACHE)
@@ -115,7 +116,7 @@ def run(
     dh = h1 - h0
     if use_known and hand_stays_clear(model, q, h0, s_end * dh, known):
         out = _out(q, h0 + s_end * dh, s_end, s_end, blocked, False, True)
-        return out, new_log(), contact_sets.empty(), np.zeros((0, 6))
+        return out, new_log(), contact_sets.empty(), np.zeros((0, ROW_SIZE))
     if not np.any(dh) or s_end <= 0.0:  # the hand stays where it is
         q, events = settle(model, q, h0, solves)
         s, jammed = 0.0, False
@@ -147,7 +148,7 @@ def at_rest(model, q: np.ndarray, h: np.ndarray):
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
     P, N, gaps, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
-    rows = np.empty((keys.shape[0], 6))
+    rows = np.empty((keys.shape[0], ROW_SIZE))
     rows[:, ROW_POINT] = P
     rows[:, ROW_NORMAL] = N
     rows[:, ROW_GAP] = gaps
