@@ -45,6 +45,7 @@ import math
 import os
 import platform
 import shlex
+import subprocess
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -59,7 +60,6 @@ import numpy as np
 import yaml
 
 import grasp_env  # noqa: F401  (registers the env ids)
-from agents.evaluate import git_commit
 from agents.scripted import ScriptedPolicy
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 from grasp_env.envs import LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
@@ -418,6 +418,32 @@ def run_jobs(fn, jobs: list, workers: int, deadline: float | None, label: str) -
     return results
 
 
+#: The folders whose uncommitted changes a page notes.
+CODE_DIRS = ("grasp_env", "agents", "configs")
+
+
+def git_commit() -> str:
+    """The checked-out commit (short hash), noting uncommitted changes to ``grasp_env/``,
+    ``agents/`` and ``configs/``; ``unknown`` outside git."""
+    repo = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True, text=True
+        )
+        changed = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", *CODE_DIRS],
+            cwd=repo,
+            capture_output=True,
+            text=True,
+        )
+    except OSError:
+        return "unknown"
+    if head.returncode != 0:
+        return "unknown"
+    dirty = changed.returncode == 0 and changed.stdout.strip()
+    return head.stdout.strip() + (" with uncommitted changes" if dirty else "")
+
+
 def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
@@ -486,6 +512,15 @@ def training_page(run: Path, command: str, date: str, commit: str) -> str:
     with open(run / "progress.csv", newline="") as f:
         rounds = list(csv.DictReader(f))
     run_args = stats.get("args", {})
+    played, grasped = stats["expert_episodes"], stats["expert_success"]
+    seeds, source = "-", "collected by this run"
+    if (run / "expert.npz").is_file():  # the data's own record, also where it came by --data
+        with np.load(run / "expert.npz") as d:
+            if "seeds" in d.files and len(d["seeds"]):
+                played, grasped = len(d["seeds"]), int(d["seed_success"].sum())
+                seeds = f"{d['seeds'].min()}..{d['seeds'].max()}"
+    if run_args.get("data"):
+        source = f"from `{run_args['data']}`"
     lines = [
         f"# Imitation of the scripted planner: training of `{run.as_posix()}`",
         "",
@@ -503,8 +538,8 @@ def training_page(run: Path, command: str, date: str, commit: str) -> str:
         + (f"; run at commit `{stats['commit']}`, {stats['date']}" if "commit" in stats else "")
         + f"; {stats.get('wall_minutes', math.nan):.0f} minutes of wall time.",
         "",
-        f"Expert episodes: {stats['expert_success']} of {stats['expert_episodes']} grasped by "
-        f"the planner (training seeds); samples after the last round: {stats['samples']}.",
+        f"Expert episodes: {grasped} of {played} grasped by the planner (training seeds "
+        f"{seeds}, both starts; {source}); samples after the last round: {stats['samples']}.",
         "",
         "Round 0 is behaviour cloning on the expert's episodes; round k >= 1 adds the expert's "
         "labels of the states the round k-1 network visited. Network success: the network "

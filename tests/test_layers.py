@@ -34,11 +34,17 @@ LAYERS = {
         ("callbacks", "scripted", "rllib_policy"),
         ("planner_agents",),
         ("models",),
-        ("train_ppo", "train_rllib", "evaluate", "learning_curves"),
+        ("train_ppo", "train_rllib", "evaluate", "learning_curves", "imitation"),
     ],
 }
 #: The commands of ``agents`` (its top layer), none of which imports another.
-COMMANDS = {"agents.train_ppo", "agents.train_rllib", "agents.evaluate", "agents.learning_curves"}
+COMMANDS = {
+    "agents.train_ppo",
+    "agents.train_rllib",
+    "agents.evaluate",
+    "agents.learning_curves",
+    "agents.imitation",
+}
 PACKAGES = list(LAYERS)
 
 
