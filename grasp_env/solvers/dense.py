@@ -36,9 +36,9 @@ def dot(a: np.ndarray, b: np.ndarray) -> float:
     return out
 
 
-@njit(cache=CACHE)
-def matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``A x`` for a 2-D ``A``."""
+@njit(cache=CACHE, inline="always")
+def _matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A x`` for a 2-D ``A`` (a view or a transpose), inlined into its two callers."""
     m, n = A.shape
     out = np.zeros(m)
     for i in range(m):
@@ -50,16 +50,16 @@ def matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=CACHE)
+def matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A x`` for a 2-D ``A``."""
+    return _matvec(A, x)
+
+
+@njit(cache=CACHE)
 def rmatvec(A: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``A^T y`` for a 2-D ``A``."""
-    m, n = A.shape
-    out = np.zeros(n)
-    for j in range(n):
-        acc = 0.0
-        for i in range(m):
-            acc += A[i, j] * y[i]
-        out[j] = acc
-    return out
+    """``A^T y`` for a 2-D ``A``: each entry summed in the row order of ``A``, on its
+    transposed view (no copy)."""
+    return _matvec(A.T, y)
 
 
 @njit(cache=CACHE)

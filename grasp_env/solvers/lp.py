@@ -8,7 +8,7 @@ inequality and equality rows, so a faster specialised solver can replace it behi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -49,32 +49,28 @@ def solve(
         A_ub = b_ub = None
     if A_eq is not None and len(A_eq) == 0:
         A_eq = b_eq = None
-    res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
-    if res.status in (2, 4):
-        # HiGHS' presolve may only say "infeasible or unbounded", or (rarely, on tiny
-        # degenerate problems) call a feasible one infeasible: decide without presolve, and
-        # failing that by the feasibility problem (zero objective).
-        res = linprog(
-            c,
+
+    def highs(cost: np.ndarray, **options: Any):
+        """HiGHS on these constraints with objective ``cost``."""
+        return linprog(
+            cost,
             A_ub=A_ub,
             b_ub=b_ub,
             A_eq=A_eq,
             b_eq=b_eq,
             bounds=bounds,
             method="highs",
-            options={"presolve": False},
+            **options,
         )
+
+    res = highs(c)
+    if res.status in (2, 4):
+        # HiGHS' presolve may only say "infeasible or unbounded", or (rarely, on tiny
+        # degenerate problems) call a feasible one infeasible: decide without presolve, and
+        # failing that by the feasibility problem (zero objective).
+        res = highs(c, options={"presolve": False})
         if res.status == 4:
-            feas = linprog(
-                np.zeros_like(c),
-                A_ub=A_ub,
-                b_ub=b_ub,
-                A_eq=A_eq,
-                b_eq=b_eq,
-                bounds=bounds,
-                method="highs",
-            )
-            res.status = 3 if feas.status == 0 else 2
+            res.status = 3 if highs(np.zeros_like(c)).status == 0 else 2
     status = _STATUS.get(res.status)
     if status is None:
         raise SolverError(f"HiGHS failed: {res.message}", status=f"highs_{res.status}")
