@@ -319,25 +319,21 @@ def _check_torques(scene: Scene) -> None:
                 )
 
 
-def _check_edges(scene: Scene) -> None:
-    """Refuse object edges shorter than ``MIN_EDGE_TOLS`` contact tolerances."""
+def _check_geometry(scene: Scene) -> None:
+    """At the contact tolerance, refuse object edges shorter than ``MIN_EDGE_TOLS``
+    tolerances, then an object below the support or inside the hand, and a hand inside the
+    support."""
     tol = DEFAULT_CONTACT_TOL * scene.palm.width
-    v = scene.object.vertices_W0
-    edge = geo.norms(geo.edge_vectors(v))
+    obj = scene.object.vertices_W0
+    edge = geo.norms(geo.edge_vectors(obj))
     i = int(np.argmin(edge))
     if edge[i] < MIN_EDGE_TOLS * tol:
-        j = (i + 1) % len(v)
+        j = (i + 1) % len(obj)
         raise SceneError(
-            f"object.vertices[{i}] and [{j}] ({v[i].tolist()}, {v[j].tolist()}) are "
+            f"object.vertices[{i}] and [{j}] ({obj[i].tolist()}, {obj[j].tolist()}) are "
             f"{float(edge[i])!r} apart, less than {MIN_EDGE_TOLS:g} contact tolerances "
             f"({MIN_EDGE_TOLS * tol:g} = {MIN_EDGE_TOLS:g} x {DEFAULT_CONTACT_TOL:g} x palm.width)"
         )
-
-
-def _check_placement(scene: Scene) -> None:
-    """Refuse an object below the support or inside the hand, and a hand inside the support."""
-    tol = DEFAULT_CONTACT_TOL * scene.palm.width
-    obj = scene.object.vertices_W0
     if obj[:, 1].min() < -tol:
         raise SceneError(
             "object.vertices: the object starts below the support "
@@ -383,8 +379,7 @@ def scene_from_dict(d: Any, source: str | None = None) -> Scene:
         source=source,
     )
     _check_torques(scene)
-    _check_edges(scene)
-    _check_placement(scene)
+    _check_geometry(scene)
     return scene
 
 
