@@ -40,6 +40,19 @@ def parser(module: str, doc: str, page: str | None = None, quick: str | None = N
     return ap
 
 
+def run_page(
+    ap: argparse.ArgumentParser,
+    run: Callable[..., object],
+    argv: Sequence[str] | None,
+    *options: str,
+) -> int:
+    """A page's command: parse ``argv`` with ``ap`` (made by :func:`parser` with ``quick`` and
+    ``page``), call ``run(quick, out, *values of options)``; exit status 0."""
+    args = ap.parse_args(argv)
+    run(args.quick, args.out, *(getattr(args, name) for name in options))
+    return 0
+
+
 def headless() -> None:
     """Keep pygame (imported by renderers) off any display or sound device."""
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")

@@ -31,7 +31,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.common import OUT, parser, table, write
+from benchmarks.common import OUT, parser, run_page, table, write
 
 STARTUP = """
 import json, time
@@ -271,9 +271,7 @@ def run(
 
 def main(argv: list[str] | None = None) -> int:
     quick = "20 steps, 3 start-up repeats, 1 warm run, fork only"
-    args = parser("benchmarks.memory", __doc__, "memory.md", quick).parse_args(argv)
-    run(args.quick, args.out)
-    return 0
+    return run_page(parser("benchmarks.memory", __doc__, "memory.md", quick), run, argv)
 
 
 if __name__ == "__main__":

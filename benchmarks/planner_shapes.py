@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -125,6 +126,14 @@ def _wilson(k: int, n: int) -> str:
     return f"{k}/{n} ({100 * k / n:.0f}%, 95% CI {100 * lo:.0f}-{100 * hi:.0f}%)" if n else "-"
 
 
+def _by_suite(records: list[dict]) -> Iterator[tuple[str, list[dict]]]:
+    """Each suite of ``SUITES`` that has records, in that order, with its records."""
+    for suite in SUITES:
+        mine = [r for r in records if r["suite"] == suite]
+        if mine:
+            yield suite, mine
+
+
 def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]:
     """The page's body: per suite, the outcome counts, failure reasons and CPU times, then the
     scripted policy through the env, then every failure."""
@@ -137,10 +146,7 @@ def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]
         "",
     ]
     rows = []
-    for suite in SUITES:
-        mine = [r for r in plans if r["suite"] == suite]
-        if not mine:
-            continue
+    for suite, mine in _by_suite(plans):
         tippable = [r for r in mine if r["tippable"]]
         lifted = [r for r in tippable if _lifted(r)]
         cpu = [r["cpu"] for r in tippable]
@@ -187,10 +193,7 @@ def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]
             "",
         ]
         env_rows = []
-        for suite in SUITES:
-            mine = [e for e in episodes if e["suite"] == suite]
-            if not mine:
-                continue
+        for suite, mine in _by_suite(episodes):
             tippable = {r["k"] for r in plans if r["suite"] == suite and r["tippable"]}
             on_tippable = [e for e in mine if e["k"] in tippable]
             env_rows.append(

@@ -21,7 +21,7 @@ import statistics
 import time
 from pathlib import Path
 
-from benchmarks.common import OUT, REPO, headless, parser, table, write
+from benchmarks.common import OUT, REPO, headless, parser, run_page, table, write
 from grasp_env.cli import positive_int
 
 VEC_ENVS = ("dummy", "subproc")
@@ -131,7 +131,7 @@ def run(
     return write(out, "PPO training throughput", body)
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = parser(
         "benchmarks.ppo_throughput", __doc__, "ppo_throughput.md", "one rollout per measurement"
     )
@@ -139,9 +139,8 @@ def main(argv: list[str] | None = None) -> None:
         "--rounds", type=positive_int, help=f"alternating rounds (default {ROUNDS}, 1 with --quick)"
     )
     ap.add_argument("--entry", default="fig13_fingers", help="configs/ppo.yml entry")
-    args = ap.parse_args(argv)
-    run(args.quick, args.out, args.entry, args.rounds)
+    return run_page(ap, run, argv, "entry", "rounds")
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

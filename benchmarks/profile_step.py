@@ -33,7 +33,16 @@ from pathlib import Path
 import gymnasium as gym
 
 import grasp_env
-from benchmarks.common import OUT, git_commit, headless, machine_line, median_time, parser, table
+from benchmarks.common import (
+    OUT,
+    git_commit,
+    headless,
+    machine_line,
+    median_time,
+    parser,
+    run_page,
+    table,
+)
 from benchmarks.throughput import RandomActions
 from benchmarks.work_precision import closing_motion
 
@@ -241,9 +250,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.profile_step", __doc__, "profile.md", "40 steps per configuration")
     ap.add_argument("--steps", type=int, help="random-action steps per configuration")
     ap.add_argument("--baseline", type=Path, help="an older profile.json to compare with")
-    args = ap.parse_args(argv)
-    run(args.quick, args.out, args.steps, args.baseline)
-    return 0
+    return run_page(ap, run, argv, "steps", "baseline")
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env  # noqa: F401  (registers the env ids)
-from benchmarks.common import OUT, REPO, headless, parser, table, write
+from benchmarks.common import OUT, REPO, headless, parser, run_page, table, write
 from benchmarks.throughput import RandomActions
 from grasp_env.envs.episode import state_arrays
 from grasp_env.kernel import step as kernel
@@ -245,9 +245,7 @@ def run(quick: bool = False, out: Path = OUT / "step_parts.md", steps: int | Non
 def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.step_parts", __doc__, "step_parts.md", "200 steps per set-up")
     ap.add_argument("--steps", type=int, help="random-action steps per set-up")
-    args = ap.parse_args(argv)
-    run(args.quick, args.out, args.steps)
-    return 0
+    return run_page(ap, run, argv, "steps")
 
 
 if __name__ == "__main__":

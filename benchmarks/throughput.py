@@ -25,7 +25,7 @@ import numpy as np
 from gymnasium import spaces
 
 import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
-from benchmarks.common import OUT, headless, parser, table, write
+from benchmarks.common import OUT, headless, parser, run_page, table, write
 
 BASELINES = ("LunarLander-v3", "CartPole-v1")
 #: The env configurations stepped with random actions.
@@ -241,9 +241,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.throughput", __doc__, "throughput.md", "2 rounds of 1 s per env")
     ap.add_argument("--budget", type=float, help="seconds per env per round")
     ap.add_argument("--rounds", type=int, help="rounds")
-    args = ap.parse_args(argv)
-    run(args.quick, args.out, args.budget, args.rounds)
-    return 0
+    return run_page(ap, run, argv, "budget", "rounds")
 
 
 if __name__ == "__main__":

@@ -29,7 +29,16 @@ from typing import NamedTuple
 import numpy as np
 
 import grasp_env
-from benchmarks.common import OUT, BudgetExceeded, median_time, parser, table, time_limit, write
+from benchmarks.common import (
+    OUT,
+    BudgetExceeded,
+    median_time,
+    parser,
+    run_page,
+    table,
+    time_limit,
+    write,
+)
 from grasp_env.planning import centred_hand
 
 DQ = 0.01  #: finger increment of the closing motion (rad per move)
@@ -246,9 +255,8 @@ def run(
 
 def main(argv: list[str] | None = None) -> int:
     quick = "a small grid (about 15 s)"
-    args = parser("benchmarks.work_precision", __doc__, "work_precision.md", quick).parse_args(argv)
-    run(args.quick, args.out)
-    return 0
+    ap = parser("benchmarks.work_precision", __doc__, "work_precision.md", quick)
+    return run_page(ap, run, argv)
 
 
 if __name__ == "__main__":
