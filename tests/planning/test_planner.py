@@ -166,6 +166,19 @@ def test_tipping_placement_puts_a_fingertip_at_a_support_contact():
     assert touch and all(region.contains(c.point, c.normal, 1e-7) for c in touch)
 
 
+def _replay_approach(sim, state, path, start):
+    """Replay an approach ``path`` from ``state`` independently, waypoint by waypoint: the
+    object stays at ``start``, the hand is neither jammed nor blocked and clears the
+    support. Returns the last state."""
+    for h in path:
+        state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
+        assert np.allclose(state.object_pose, start, atol=1e-9)
+        assert not state.jammed and not state.hand_blocked
+        for poly in kin.hand_polygons_W(sim.scene, state.hand):
+            assert poly[:, 1].min() >= -1e-9
+    return state
+
+
 def test_approach_path_reaches_a_tilted_placement_without_touching_the_object():
     # From the centred placement (fingers touching) to a tilted-palm tipping placement.
     sim = grasp_env.Simulator("square")
@@ -173,14 +186,7 @@ def test_approach_path_reaches_a_tilted_placement_without_touching_the_object():
     state = planning.centred_placement(sim)
     path = planning.approach_path(sim, state, target.hand)
     assert path is not None and np.array_equal(path[-1], target.hand)
-    start = sim.scene.object.start_pose
-    for h in path:
-        # the object stays put at every waypoint, and the hand clears the support
-        state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
-        assert np.allclose(state.object_pose, start, atol=1e-9)
-        assert not state.jammed and not state.hand_blocked
-        for poly in kin.hand_polygons_W(sim.scene, state.hand):
-            assert poly[:, 1].min() >= -1e-9
+    state = _replay_approach(sim, state, path, sim.scene.object.start_pose)
     assert np.allclose(state.hand, target.hand, atol=1e-9)
     assert {"finger1", "finger2"} <= {c.body for c in state.contacts}
 
@@ -199,13 +205,7 @@ def test_approach_path_slides_a_fingertip_under_an_overhang(seed):
     state = sim.reset()
     path = planning.approach_path(sim, state, target.hand)
     assert path is not None and np.array_equal(path[-1], target.hand)
-    start = state.object_pose.copy()
-    for h in path:  # replayed independently: the object never moves, the hand stays clear
-        state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
-        assert np.allclose(state.object_pose, start, atol=1e-9)
-        assert not state.jammed and not state.hand_blocked
-        for poly in kin.hand_polygons_W(sim.scene, state.hand):
-            assert poly[:, 1].min() >= -1e-9
+    state = _replay_approach(sim, state, path, state.object_pose.copy())
     assert np.allclose(state.hand, target.hand, atol=1e-9)
     assert {c.body for c in target.contacts} <= {c.body for c in state.contacts}
 

@@ -229,12 +229,18 @@ def test_random_hand_paths_keep_invariants(scene: grasp_env.Scene, path: list) -
 action = st.tuples(*[st.floats(-1.0, 1.0)] * 5)
 
 
+def given_env_runs(max_actions: int):
+    """``given`` the arguments of :func:`run_env`: a scene, a start, 1 to ``max_actions``
+    actions."""
+    return given(
+        scene=scenes(),
+        start=st.sampled_from(["scene", "preliftoff", "random"]),
+        actions=st.lists(action, min_size=1, max_size=max_actions),
+    )
+
+
 @FAST
-@given(
-    scene=scenes(),
-    start=st.sampled_from(["scene", "preliftoff", "random"]),
-    actions=st.lists(action, min_size=1, max_size=10),
-)
+@given_env_runs(max_actions=10)
 def test_random_env_actions_keep_invariants(scene, start: str, actions: list) -> None:
     run_env(scene, start, actions)
 
@@ -248,11 +254,7 @@ def test_random_hand_paths_keep_invariants_slow(scene: grasp_env.Scene, path: li
 
 @pytest.mark.slow
 @SLOW
-@given(
-    scene=scenes(),
-    start=st.sampled_from(["scene", "preliftoff", "random"]),
-    actions=st.lists(action, min_size=1, max_size=40),
-)
+@given_env_runs(max_actions=40)
 def test_random_env_actions_keep_invariants_slow(scene, start: str, actions: list) -> None:
     run_env(scene, start, actions)
 
