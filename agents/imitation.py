@@ -303,15 +303,18 @@ def behaviour_clone(
     seed: int = 0,
     val_fraction: float = 0.1,
     log=None,
+    weights: np.ndarray | None = None,
 ) -> list[dict[str, float]]:
     """Fit the actor's mean to ``act`` by mean squared error (Adam, a cosine-decayed
     learning rate); returns per epoch ``{"epoch", "train_loss", "val_loss"}`` (the loss
-    over a held-out ``val_fraction`` of the samples, nan without one)."""
+    over a held-out ``val_fraction`` of the samples, nan without one); ``weights``: each
+    sample's weight in the training loss (default: all 1)."""
     import torch
 
     policy = model.policy
     x_all = torch.as_tensor(norm.normalize_obs(obs), dtype=torch.float32)
     y_all = torch.as_tensor(act, dtype=torch.float32)
+    w_all = torch.as_tensor(np.ones(len(act)) if weights is None else weights, dtype=torch.float32)
     rng = np.random.default_rng(seed)
     order = rng.permutation(len(obs))
     n_val = int(len(obs) * val_fraction) if len(obs) >= 20 else 0
@@ -333,7 +336,8 @@ def behaviour_clone(
         total = 0.0
         for i in range(0, len(perm), batch_size):
             idx = torch.as_tensor(perm[i : i + batch_size])
-            loss = ((actor_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
+            err = ((actor_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean(dim=1)
+            loss = (w_all[idx] * err).sum() / w_all[idx].sum()
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -465,6 +469,12 @@ def interleave(first: list, second: list) -> list:
     return [items[i] for i in order]
 
 
+def _weights(data: dict[str, np.ndarray], dagger_weight: float) -> np.ndarray:
+    """Each sample's loss weight: 1 for the expert's episodes (round 0), ``dagger_weight``
+    for the DAgger labels."""
+    return np.where(data["round"] > 0, dagger_weight, 1.0)
+
+
 def _stack(episodes: list[dict], key: str, width: int) -> np.ndarray:
     parts = [e[key] for e in episodes if len(e[key])]
     return np.concatenate(parts) if parts else np.zeros((0, width), np.float32)
@@ -521,6 +531,8 @@ def training_page(run: Path, command: str, date: str, commit: str) -> str:
                 seeds = f"{d['seeds'].min()}..{d['seeds'].max()}"
     if run_args.get("data"):
         source = f"from `{run_args['data']}`"
+        unused = ("episodes", "lift_episodes", "hold_steps", "keep_failures", "collect_minutes")
+        run_args = {k: v for k, v in run_args.items() if k not in unused}
     lines = [
         f"# Imitation of the scripted planner: training of `{run.as_posix()}`",
         "",
@@ -542,8 +554,9 @@ def training_page(run: Path, command: str, date: str, commit: str) -> str:
         f"{seeds}, both starts; {source}); samples after the last round: {stats['samples']}.",
         "",
         "Round 0 is behaviour cloning on the expert's episodes; round k >= 1 adds the expert's "
-        "labels of the states the round k-1 network visited. Network success: the network "
-        "alone, deterministic, in that round's DAgger episodes (training seeds, both starts).",
+        "labels of the states the round k-1 network visited. Network success in row k: the "
+        "round k-1 network alone, deterministic, in round k's DAgger episodes (training "
+        "seeds, both starts); the last round's network is measured by agents.evaluate.",
         "",
         "| round | samples | train loss | validation loss | DAgger episodes "
         "| network success | expert queries | unlabelled | minutes |",
@@ -610,6 +623,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="the expert labels every this many visited states",
     )
     p.add_argument("--epochs", type=positive_int, default=30, help="BC epochs (first fit)")
+    p.add_argument(
+        "--dagger-weight",
+        type=_positive_float,
+        default=1.0,
+        help="weight of a DAgger label in the loss, against 1 for an expert episode's sample",
+    )
     p.add_argument(
         "--dagger-epochs", type=positive_int, default=15, help="BC epochs after each round"
     )
@@ -724,7 +743,7 @@ def main(argv: list[str] | None = None) -> int:
     log(f"behaviour cloning on {len(data['act'])} samples, {args.epochs} epochs")
     history = behaviour_clone(
         model, norm, data["obs"], data["act"], args.epochs, args.batch_size, args.lr,
-        args.seed, log=log,
+        args.seed, log=log, weights=_weights(data, args.dagger_weight),
     )  # fmt: skip
     progress = [
         {
@@ -788,7 +807,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         history = behaviour_clone(
             model, norm, data["obs"], data["act"], args.dagger_epochs, args.batch_size,
-            args.lr, args.seed + it, log=log,
+            args.lr, args.seed + it, log=log, weights=_weights(data, args.dagger_weight),
         )  # fmt: skip
         progress.append(
             {

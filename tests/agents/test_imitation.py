@@ -108,3 +108,8 @@ def test_interleave_spreads_both_starts():
     merged = imitation.interleave(list(range(6)), ["a", "b"])
     assert sorted(map(str, merged)) == sorted(map(str, [*range(6), "a", "b"]))
     assert merged[:4].count("a") == 1
+
+
+def test_dagger_labels_weigh_dagger_weight():
+    data = {"round": np.array([0, 0, 1, 2], np.int16)}
+    np.testing.assert_array_equal(imitation._weights(data, 5.0), [1, 1, 5, 5])
