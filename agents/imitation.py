@@ -28,10 +28,12 @@
 Writes into ``--out`` a model directory that ``agents.evaluate --models`` and
 ``agents.train_ppo -i`` read (``model.zip``, ``vecnormalize.pkl``, ``config.yml``: the entry
 of ``FrictionlessGraspRandomShapes-v0`` with ``hand_features``, ``train_stats.json``), the
-data (``expert.npz``) and ``progress.csv`` (one row per round: samples, losses, the
-network's success in the DAgger episodes). At test time the model is its network alone on
-the env's observation: no planner, no simulator calls. The recipe and results:
-``docs/imitation.md``.
+data (``expert.npz``), ``round_<k>/`` (the model after each round), ``progress.csv`` (one
+row per round: samples, losses, the network's success in the DAgger episodes) and
+``training.md``, the training page (``--page`` elsewhere; ``--report RUN`` writes it again
+for a finished run). ``--dagger-weight`` weighs each DAgger label in the loss. At test
+time the model is its network alone on the env's observation: no planner, no simulator
+calls. The recipe and results: ``docs/imitation.md``.
 """
 
 from __future__ import annotations
