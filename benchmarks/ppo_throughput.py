@@ -100,7 +100,11 @@ def run(
     for label, mine, ours_vec, theirs_vec in cases:
         rollout = int(mine.get("n_envs", 1)) * int(mine["n_steps"])
         steps = (rollout * (1 if quick else 4), rollout * (2 if quick else 6))
-        cartpole = {**mine, "env_id": "CartPole-v1", "env_kwargs": {}, "env_wrapper": None}
+        # CartPole with our PPO settings: none of our env's kwargs, wrappers or info keys
+        cartpole = {
+            **mine, "env_id": "CartPole-v1", "env_kwargs": {}, "env_wrapper": None,
+            "monitor_kwargs": {},
+        }  # fmt: skip
         ours, theirs = compare(mine, cartpole, (ours_vec, theirs_vec), steps, rounds)
         ratios = [a / b for a, b in zip(ours, theirs, strict=True)]
         load = os.getloadavg()[0]
