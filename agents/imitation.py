@@ -20,10 +20,10 @@
 3. **DAgger** (``--dagger-iters`` rounds): the current network plays ``--dagger-episodes``
    new training episodes (both starts, in the proportion of step 1); at every
    ``--query-every``-th step the expert is asked for its action at the visited state: a
-   fresh ``ScriptedPolicy`` planned from that state (:func:`expert_action`; its exploratory
-   search, seconds of simulation, is left out, and a state from which it has no plan gets
-   no label). The labels join the data and the network is trained again from the previous
-   weights.
+   fresh ``ScriptedPolicy`` planned from that state (``agents.expert.expert_action``; its
+   exploratory search, seconds of simulation, is left out, and a state from which it has
+   no plan gets no label). The labels join the data and the network is trained again from
+   the previous weights.
 
 Writes into ``--out`` a model directory that ``agents.evaluate --models`` and
 ``agents.train_ppo -i`` read (``model.zip``, ``vecnormalize.pkl``, ``config.yml``: the entry
@@ -33,453 +33,54 @@ row per round: samples, losses, the network's success in the DAgger episodes) an
 ``training.md``, the training page (``--page`` elsewhere; ``--report RUN`` writes it again
 for a finished run). ``--dagger-weight`` weighs each DAgger label in the loss. At test
 time the model is its network alone on the env's observation: no planner, no simulator
-calls. The recipe and results: ``docs/imitation.md``.
+calls. The recipe and results: ``docs/imitation.md``. The expert and its episodes:
+``agents.expert``; behaviour cloning and the model directory: ``agents.cloning``; the
+training page: ``agents.imitation_page``.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import datetime
-import functools
-import json
 import math
 import os
 import platform
 import shlex
-import subprocess
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
-import gymnasium as gym
 import numpy as np
-import yaml
 
-import grasp_env  # noqa: F401  (registers the env ids)
-from agents.scripted import ScriptedPolicy
+from agents.cloning import (
+    behaviour_clone,
+    mse,
+    new_model,
+    sample_weights,
+    save_model,
+    set_normalization,
+)
+from agents.expert import (
+    ENV_ID,
+    STARTS,
+    check_actions,
+    dagger_episode,
+    expert_episode,
+    interleave,
+    make_env,
+    run_jobs,
+    stack_samples,
+)
+from agents.imitation_page import training_page
+from agents.provenance import git_commit, utc_now
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
-from grasp_env.envs import LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
-from grasp_env.errors import ComputationError
 
-#: The env id the model's config names: random shapes from the scene's start with palm
-#: control, as the planner is evaluated; the model adds the observation's hand features.
-ENV_ID = RANDOM_SHAPES_ENV_ID
-#: Env kwargs of the two starts of the training distribution, each with the hand features
-#: (they change the observation only): the scene's start (``agents.evaluate.SCRIPTED_KWARGS``
-#: with random shapes) and the planner's placement (the lifting task).
-STARTS = {
-    "scene": (ENV_ID, {"hand_features": True}),
-    "placement": (LIFT_ENV_ID, {}),
-}
 #: Seeds that training data must not use: the held-out suites' (``agents.evaluate``,
 #: 1,000,000 on) and the learning curves' validation episodes (2,000,000 on).
 RESERVED_SEEDS = range(1_000_000, 3_000_000)
-#: Floor of the saved observation variance: entries that hardly vary in the data (padding,
-#: flags) are not blown up where they do vary.
-MIN_VAR = 1e-4
-#: The model's training entry (zoo format; the lifting entry's reward and PPO settings, for
-#: a PPO fine-tune with ``agents.train_ppo -i``).
-ENTRY: dict[str, Any] = {
-    "env_kwargs": {
-        "hand_features": True,
-        "reward_form_closure_weight": 1.0,
-        "reward_hold_weight": 1.0,
-        "reward_grip_weight": 0.5,
-        "reward_lift_weight": 10.0,
-    },
-    "env_wrapper": ["agents.wrappers.TrainingInfo"],
-    "n_envs": 2,
-    "n_timesteps": 0,
-    "policy": "MlpPolicy",
-    "normalize": "dict(norm_obs=True, norm_reward=True)",
-    "n_steps": 1024,
-    "batch_size": 256,
-    "n_epochs": 10,
-    "gamma": 0.99,
-    "gae_lambda": 0.95,
-    "learning_rate": 1e-4,
-    "ent_coef": 0.0,
-    "clip_range": 0.2,
-    "monitor_kwargs": "dict(info_keywords=('is_success',))",
-    "callback": ["agents.callbacks.RewardTermsCallback"],
-}
-
-
-def make_env(start: str, **kwargs) -> gym.Env:
-    """A training env of one start (``"scene"`` or ``"placement"``)."""
-    env_id, extra = STARTS[start]
-    return gym.make(env_id, **{**extra, **kwargs})
-
-
-# ---------------------------------------------------------------------- the expert
-class _StateView:
-    """The env's accessors with another state in place of the env's: what
-    :class:`ScriptedPolicy` reads to plan from a state (nothing in the env changes)."""
-
-    def __init__(self, base, state) -> None:
-        self._base = base
-        self.state = state
-
-    @property
-    def unwrapped(self):
-        return self
-
-    def __getattr__(self, name: str):
-        return getattr(self._base, name)
-
-
-class _QueryExpert(ScriptedPolicy):
-    """The planner asked for one action: its exploratory search (seconds of simulation) is
-    left out."""
-
-    def _explore(self, state) -> None:
-        self._explored = True
-
-
-def expert_action(env: gym.Env, state=None) -> np.ndarray | None:
-    """The planner's action at ``state`` (default: the env's): a fresh ``ScriptedPolicy``
-    planned from it, as at an episode's start, without its exploratory search; None where it
-    has no plan that lifts (or fails). The env is not changed."""
-    base = env.unwrapped
-    policy = _QueryExpert(_StateView(base, base.state if state is None else state))
-    try:
-        policy.reset()
-        if not (policy.plan.success or policy.on_fallback):
-            return None
-        return policy.act()
-    except ComputationError:
-        return None
-
-
-def check_actions(actions: np.ndarray, space: gym.spaces.Box) -> None:
-    """Raise ValueError unless every row is in the env's action space."""
-    actions = np.asarray(actions)
-    bad = ~np.all((actions >= space.low) & (actions <= space.high), axis=-1)
-    if actions.dtype != space.dtype or bad.any():
-        raise ValueError(f"expert actions outside {space}: {actions[bad][:3]}")
-
-
-def expert_episode(job: tuple[str, int, int]) -> dict[str, Any]:
-    """One episode of the planner: ``(start, seed, hold_steps)`` ->
-    ``{"obs", "act", "success", "steps", "seed", "start", "seconds"}``."""
-    start, seed, hold_steps = job
-    t0 = time.process_time()
-    env = make_env(start)
-    obs, info = env.reset(seed=seed)
-    policy = ScriptedPolicy(env)
-    observations, actions = [], []
-    held, success, error = 0, False, ""
-    try:
-        policy.reset(obs, info)
-        while True:
-            action = policy.act(obs)
-            observations.append(obs)
-            actions.append(action)
-            obs, _, terminated, truncated, info = env.step(action)
-            success = bool(info["is_success"])
-            held = held + 1 if policy.done else 0
-            if terminated or truncated or held > hold_steps:
-                break
-    except ComputationError as exc:
-        error = f"{type(exc).__name__}: {exc}"
-    space, width = env.action_space, env.observation_space.shape[0]
-    env.close()
-    acts = np.array(actions, np.float32).reshape(-1, space.shape[0])
-    check_actions(acts, space)
-    return {
-        "obs": np.array(observations, np.float32).reshape(len(actions), width),
-        "act": acts,
-        "success": success,
-        "steps": len(actions),
-        "seed": seed,
-        "start": start,
-        "error": error,
-        "seconds": time.process_time() - t0,
-    }
-
-
-# ---------------------------------------------------------------------- DAgger
-@functools.cache
-def _network(model_dir: str):
-    from agents.models import load_agent
-
-    model, norm, _, _ = load_agent(model_dir)
-    return model, norm
-
-
-def network_action(model, norm, obs: np.ndarray) -> np.ndarray:
-    """The model's deterministic action on one observation (as ``agents.evaluate`` plays)."""
-    x = norm.normalize_obs(obs) if norm is not None else obs
-    return model.predict(x, deterministic=True)[0]
-
-
-def dagger_episode(job: tuple[str, str, int, int, int]) -> dict[str, Any]:
-    """The network of ``model_dir`` plays one episode; the expert labels every
-    ``every``-th visited state: ``(model_dir, start, seed, every, _)`` -> the labelled
-    ``obs`` and ``act``, the network's ``success``, ``queries`` and ``unlabelled``."""
-    model_dir, start, seed, every, _ = job
-    t0 = time.process_time()
-    model, norm = _network(model_dir)
-    env = make_env(start)
-    obs, info = env.reset(seed=seed)
-    observations, actions = [], []
-    queries = unlabelled = steps = 0
-    while True:
-        if steps % every == 0:
-            queries += 1
-            label = expert_action(env)
-            if label is None:
-                unlabelled += 1
-            else:
-                observations.append(obs)
-                actions.append(label)
-        obs, _, terminated, truncated, info = env.step(network_action(model, norm, obs))
-        steps += 1
-        if terminated or truncated:
-            break
-    space, width = env.action_space, env.observation_space.shape[0]
-    env.close()
-    acts = np.array(actions, np.float32).reshape(-1, space.shape[0])
-    check_actions(acts, space)
-    return {
-        "obs": np.array(observations, np.float32).reshape(len(actions), width),
-        "act": acts,
-        "success": bool(info["is_success"]),
-        "steps": steps,
-        "seed": seed,
-        "start": start,
-        "queries": queries,
-        "unlabelled": unlabelled,
-        "seconds": time.process_time() - t0,
-    }
-
-
-# ---------------------------------------------------------------------- the network
-def new_model(net_arch: list[int], log_std_init: float = -1.0, seed: int = 0):
-    """A fresh PPO model on the training env (``MlpPolicy``, separate actor and critic
-    networks of ``net_arch``) and its ``VecNormalize`` (statistics set by
-    :func:`set_normalization`)."""
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    venv = VecNormalize(DummyVecEnv([lambda: make_env("scene")]), gamma=ENTRY["gamma"])
-    kwargs = {k: ENTRY[k] for k in ("n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda")}
-    kwargs.update(learning_rate=ENTRY["learning_rate"], ent_coef=0.0, clip_range=0.2)
-    policy_kwargs = {
-        "net_arch": {"pi": list(net_arch), "vf": list(net_arch)},
-        "log_std_init": log_std_init,
-    }
-    model = PPO("MlpPolicy", venv, policy_kwargs=policy_kwargs, seed=seed, device="cpu", **kwargs)
-    return model, venv
-
-
-def set_normalization(norm, obs: np.ndarray) -> None:
-    """``norm``'s observation statistics from the data (variance floored at ``MIN_VAR``);
-    frozen."""
-    norm.obs_rms.mean = obs.mean(axis=0).astype(np.float64)
-    norm.obs_rms.var = np.maximum(obs.var(axis=0), MIN_VAR).astype(np.float64)
-    norm.obs_rms.count = float(len(obs))
-    norm.training = False
-
-
-def actor_mean(policy, x):
-    """The actor's mean action (before clipping) for normalized observations ``x``."""
-    features = policy.extract_features(x, policy.pi_features_extractor)
-    return policy.action_net(policy.mlp_extractor.forward_actor(features))
-
-
-def behaviour_clone(
-    model,
-    norm,
-    obs: np.ndarray,
-    act: np.ndarray,
-    epochs: int,
-    batch_size: int = 256,
-    lr: float = 1e-3,
-    seed: int = 0,
-    val_fraction: float = 0.1,
-    log=None,
-    weights: np.ndarray | None = None,
-) -> list[dict[str, float]]:
-    """Fit the actor's mean to ``act`` by mean squared error (Adam, a cosine-decayed
-    learning rate); returns per epoch ``{"epoch", "train_loss", "val_loss"}`` (the loss
-    over a held-out ``val_fraction`` of the samples, nan without one); ``weights``: each
-    sample's weight in the training loss (default: all 1)."""
-    import torch
-
-    policy = model.policy
-    x_all = torch.as_tensor(norm.normalize_obs(obs), dtype=torch.float32)
-    y_all = torch.as_tensor(act, dtype=torch.float32)
-    w_all = torch.as_tensor(np.ones(len(act)) if weights is None else weights, dtype=torch.float32)
-    rng = np.random.default_rng(seed)
-    order = rng.permutation(len(obs))
-    n_val = int(len(obs) * val_fraction) if len(obs) >= 20 else 0
-    val, train = order[:n_val], order[n_val:]
-    params = [
-        *policy.features_extractor.parameters(),
-        *policy.mlp_extractor.policy_net.parameters(),
-        *policy.action_net.parameters(),
-    ]
-    params = list(dict.fromkeys(params))
-    optimizer = torch.optim.Adam(params, lr=lr)
-    steps = epochs * max(1, math.ceil(len(train) / batch_size))
-    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, steps)
-    torch.manual_seed(seed)
-    history = []
-    policy.train()
-    for epoch in range(1, epochs + 1):
-        perm = rng.permutation(train)
-        total = 0.0
-        for i in range(0, len(perm), batch_size):
-            idx = torch.as_tensor(perm[i : i + batch_size])
-            err = ((actor_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean(dim=1)
-            loss = (w_all[idx] * err).sum() / w_all[idx].sum()
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-            schedule.step()
-            total += loss.item() * len(idx)
-        with torch.no_grad():
-            val_loss = (
-                float(((actor_mean(policy, x_all[val]) - y_all[val]) ** 2).mean())
-                if n_val
-                else math.nan
-            )
-        row = {"epoch": epoch, "train_loss": total / max(1, len(train)), "val_loss": val_loss}
-        history.append(row)
-        if log is not None:
-            log(f"  epoch {epoch}/{epochs}: train loss {row['train_loss']:.4f}, val {val_loss:.4f}")
-    policy.eval()
-    return history
-
-
-def mse(model, norm, obs: np.ndarray, act: np.ndarray) -> float:
-    """Mean squared error of the actor's mean on ``(obs, act)``."""
-    import torch
-
-    with torch.no_grad():
-        x = torch.as_tensor(norm.normalize_obs(obs), dtype=torch.float32)
-        return float(((actor_mean(model.policy, x) - torch.as_tensor(act)) ** 2).mean())
-
-
-def save_model(model, norm, out: Path, stats: dict[str, Any], net_arch: list[int]) -> None:
-    """Write the model directory: ``model.zip``, ``vecnormalize.pkl``, ``config.yml`` (the
-    entry of :data:`ENV_ID`) and ``train_stats.json``."""
-    out.mkdir(parents=True, exist_ok=True)
-    model.save(out / "model.zip")
-    norm.save(str(out / "vecnormalize.pkl"))
-    entry = dict(ENTRY)
-    entry["policy_kwargs"] = (
-        f"dict(net_arch=dict(pi={list(net_arch)}, vf={list(net_arch)}), "
-        f"log_std_init={model.policy.log_std.mean().item():.3g})"
-    )
-    (out / "config.yml").write_text(yaml.safe_dump({ENV_ID: entry}, sort_keys=False))
-    (out / "train_stats.json").write_text(json.dumps(stats, indent=1) + "\n")
-
-
-# ---------------------------------------------------------------------- running jobs
-def run_jobs(fn, jobs: list, workers: int, deadline: float | None, label: str) -> list[dict]:
-    """Run ``fn`` on every job (``workers`` processes), printing a progress line per
-    episode; stops taking new jobs at ``deadline`` (``time.monotonic``)."""
-    results: list[dict] = []
-    t0 = time.monotonic()
-
-    def report(r: dict) -> None:
-        results.append(r)
-        done = len(results)
-        ok = sum(x["success"] for x in results)
-        samples = sum(len(x["act"]) for x in results)
-        rate = (time.monotonic() - t0) / done
-        print(
-            f"[{label} {done}/{len(jobs)}] {r['start']} seed {r['seed']}: "
-            f"{'grasp' if r['success'] else 'no grasp'}, {len(r['act'])} samples "
-            f"({samples} in all, success {ok}/{done}, {rate:.1f} s/episode)",
-            file=sys.stderr,
-            flush=True,
-        )
-
-    if workers <= 1:
-        for job in jobs:
-            if deadline is not None and time.monotonic() > deadline:
-                break
-            report(fn(job))
-        return results
-    with ProcessPoolExecutor(workers, initializer=_one_thread) as pool:
-        pending = [pool.submit(fn, job) for job in jobs]
-        for future in pending:
-            if deadline is not None and time.monotonic() > deadline:
-                for f in pending:
-                    f.cancel()  # the running ones finish
-            if future.cancelled():
-                continue
-            report(future.result())
-    if len(results) < len(jobs):
-        print(f"[{label}] time is up: {len(results)} of {len(jobs)} episodes", file=sys.stderr)
-    return results
-
-
-#: The folders whose uncommitted changes a page notes.
-CODE_DIRS = ("grasp_env", "agents", "configs")
-
-
-def git_commit() -> str:
-    """The checked-out commit (short hash), noting uncommitted changes to ``grasp_env/``,
-    ``agents/`` and ``configs/``; ``unknown`` outside git."""
-    repo = Path(__file__).resolve().parent.parent
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True, text=True
-        )
-        changed = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no", "--", *CODE_DIRS],
-            cwd=repo,
-            capture_output=True,
-            text=True,
-        )
-    except OSError:
-        return "unknown"
-    if head.returncode != 0:
-        return "unknown"
-    dirty = changed.returncode == 0 and changed.stdout.strip()
-    return head.stdout.strip() + (" with uncommitted changes" if dirty else "")
-
-
-def _now() -> str:
-    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-
-
-def _one_thread() -> None:
-    import torch
-
-    torch.set_num_threads(1)
-
-
-def interleave(first: list, second: list) -> list:
-    """Both lists merged, each one's items spread evenly (so that a run stopped early has
-    both in proportion)."""
-    n = len(first) + len(second)
-    keys = [(k + 0.5) / len(first) for k in range(len(first))]
-    keys += [(k + 0.5) / len(second) for k in range(len(second))]
-    order = sorted(range(n), key=lambda i: (keys[i], i))
-    items = first + second
-    return [items[i] for i in order]
-
-
-def _weights(data: dict[str, np.ndarray], dagger_weight: float) -> np.ndarray:
-    """Each sample's loss weight: 1 for the expert's episodes (round 0), ``dagger_weight``
-    for the DAgger labels."""
-    return np.where(data["round"] > 0, dagger_weight, 1.0)
-
-
-def _stack(episodes: list[dict], key: str, width: int) -> np.ndarray:
-    parts = [e[key] for e in episodes if len(e[key])]
-    return np.concatenate(parts) if parts else np.zeros((0, width), np.float32)
 
 
 def seed_problem(seed: int, count: int) -> str | None:
@@ -513,69 +114,6 @@ def _positive_float(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
     return value
-
-
-# ---------------------------------------------------------------------- the training page
-def training_page(run: Path, command: str, date: str, commit: str) -> str:
-    """The training page of a run folder (its ``train_stats.json`` and ``progress.csv``):
-    the expert data, and per round the samples, the losses and the network's success in the
-    DAgger episodes (training seeds, the network alone playing)."""
-    stats = json.loads((run / "train_stats.json").read_text())
-    with open(run / "progress.csv", newline="") as f:
-        rounds = list(csv.DictReader(f))
-    run_args = stats.get("args", {})
-    played, grasped = stats["expert_episodes"], stats["expert_success"]
-    seeds, source = "-", "collected by this run"
-    if (run / "expert.npz").is_file():  # the data's own record, also where it came by --data
-        with np.load(run / "expert.npz") as d:
-            if "seeds" in d.files and len(d["seeds"]):
-                played, grasped = len(d["seeds"]), int(d["seed_success"].sum())
-                seeds = f"{d['seeds'].min()}..{d['seeds'].max()}"
-    if run_args.get("data"):
-        source = f"from `{run_args['data']}`"
-        unused = ("episodes", "lift_episodes", "hold_steps", "keep_failures", "collect_minutes")
-        run_args = {k: v for k, v in run_args.items() if k not in unused}
-    lines = [
-        f"# Imitation of the scripted planner: training of `{run.as_posix()}`",
-        "",
-        "<!-- Generated by python -m agents.imitation --report: run the command below again "
-        "rather than editing this page. -->",
-        "",
-        f"Generated on {date} at commit `{commit}` by:",
-        "",
-        "```bash",
-        command,
-        "```",
-        "",
-        f"The run: `{stats.get('command', 'python -m agents.imitation')}` with "
-        + ", ".join(f"`{k}={v}`" for k, v in run_args.items() if v is not None)
-        + (f"; run at commit `{stats['commit']}`, {stats['date']}" if "commit" in stats else "")
-        + f"; {stats.get('wall_minutes', math.nan):.0f} minutes of wall time.",
-        "",
-        f"Expert episodes: {grasped} of {played} grasped by the planner (training seeds "
-        f"{seeds}, both starts; {source}); samples after the last round: {stats['samples']}.",
-        "",
-        "Round 0 is behaviour cloning on the expert's episodes; round k >= 1 adds the expert's "
-        "labels of the states the round k-1 network visited. Network success in row k: the "
-        "round k-1 network alone, deterministic, in round k's DAgger episodes (training "
-        "seeds, both starts); the last round's network is measured by agents.evaluate.",
-        "",
-        "| round | samples | train loss | validation loss | DAgger episodes "
-        "| network success | expert queries | unlabelled | minutes |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
-    ]
-
-    def num(text: str, fmt: str) -> str:
-        return format(float(text), fmt) if text not in ("", None) else "-"
-
-    for r in rounds:
-        lines.append(
-            f"| {r['round']} | {r['samples']} | {num(r['train_loss'], '.4f')} "
-            f"| {num(r['val_loss'], '.4f')} | {r['episodes'] or '-'} "
-            f"| {num(r['network_success'], '.2f')} | {r['queries'] or '-'} "
-            f"| {r['unlabelled'] or '-'} | {num(r['minutes'], '.0f')} |"
-        )
-    return "\n".join(lines) + "\n"
 
 
 # ---------------------------------------------------------------------- main
@@ -677,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
         page = args.page or args.report / "training.md"
         if page.is_dir() or not page.parent.is_dir():
             parser.error(f"--page {str(page)!r}: not a file in an existing folder")
-        page.write_text(training_page(args.report, command, _now(), git_commit()))
+        page.write_text(training_page(args.report, command, utc_now(), git_commit()))
         print(f"wrote {page}")
         return 0
     n_collect = 0 if args.data else args.episodes + args.lift_episodes
@@ -724,8 +262,8 @@ def main(argv: list[str] | None = None) -> int:
         collected = run_jobs(expert_episode, jobs, args.workers, collect_deadline, "expert")
         kept = [e for e in collected if e["success"] or args.keep_failures]
         data = {
-            "obs": _stack(kept, "obs", width_obs),
-            "act": _stack(kept, "act", 5),
+            "obs": stack_samples(kept, "obs", width_obs),
+            "act": stack_samples(kept, "act", 5),
             "round": np.zeros(sum(len(e["act"]) for e in kept), np.int16),
             "seeds": np.array([e["seed"] for e in collected]),
             "seed_success": np.array([e["success"] for e in collected]),
@@ -745,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
     log(f"behaviour cloning on {len(data['act'])} samples, {args.epochs} epochs")
     history = behaviour_clone(
         model, norm, data["obs"], data["act"], args.epochs, args.batch_size, args.lr,
-        args.seed, log=log, weights=_weights(data, args.dagger_weight),
+        args.seed, log=log, weights=sample_weights(data, args.dagger_weight),
     )  # fmt: skip
     progress = [
         {
@@ -762,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     stats = {
         "command": command,
-        "date": _now(),
+        "date": utc_now(),
         "commit": git_commit(),
         "method": "behaviour cloning of agents.scripted.ScriptedPolicy, then DAgger",
         "env_id": ENV_ID,
@@ -795,8 +333,8 @@ def main(argv: list[str] | None = None) -> int:
         seed += args.dagger_episodes
         log(f"DAgger round {it}: {len(jobs)} network episodes, expert every {args.query_every}")
         episodes = run_jobs(dagger_episode, jobs, args.workers, deadline, f"dagger {it}")
-        new_obs = _stack(episodes, "obs", width_obs)
-        new_act = _stack(episodes, "act", 5)
+        new_obs = stack_samples(episodes, "obs", width_obs)
+        new_act = stack_samples(episodes, "act", 5)
         before = mse(model, norm, new_obs, new_act) if len(new_act) else math.nan
         data["obs"] = np.concatenate([data["obs"], new_obs])
         data["act"] = np.concatenate([data["act"], new_act])
@@ -809,7 +347,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         history = behaviour_clone(
             model, norm, data["obs"], data["act"], args.dagger_epochs, args.batch_size,
-            args.lr, args.seed + it, log=log, weights=_weights(data, args.dagger_weight),
+            args.lr, args.seed + it, log=log, weights=sample_weights(data, args.dagger_weight),
         )  # fmt: skip
         progress.append(
             {
@@ -836,7 +374,7 @@ def main(argv: list[str] | None = None) -> int:
         writer.writeheader()
         writer.writerows(progress)
     page = args.page or args.out / "training.md"
-    page.write_text(training_page(args.out, command, _now(), git_commit()))
+    page.write_text(training_page(args.out, command, utc_now(), git_commit()))
     log(
         f"wrote {args.out}/: model.zip vecnormalize.pkl config.yml train_stats.json "
         f"progress.csv, and {page}"

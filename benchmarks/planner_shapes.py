@@ -32,7 +32,7 @@ def suite_scene(suite: str, k: int):
     """Shape ``k`` of ``suite``: the scene of the env's ``reset(seed=HELDOUT_SEED + k)``."""
     import gymnasium as gym
 
-    from agents.evaluate import HELDOUT_SEED, SHAPE_SUITES
+    from agents.episodes import HELDOUT_SEED, SHAPE_SUITES
 
     env = gym.make("FrictionlessGrasp-v0", **SHAPE_SUITES[suite])
     env.reset(seed=HELDOUT_SEED + k)
@@ -84,7 +84,7 @@ def plan_one(suite: str, k: int, timeout: float) -> dict:
 
 def env_one(suite: str, k: int, timeout: float) -> dict:
     """The scripted policy's episode on shape ``k`` of ``suite`` through the env."""
-    from agents.evaluate import HELDOUT_SEED, SCRIPTED_KWARGS, PolicySpec, run_episode
+    from agents.episodes import HELDOUT_SEED, SCRIPTED_KWARGS, PolicySpec, run_episode
 
     spec = PolicySpec("scripted", "scripted", SCRIPTED_KWARGS)
     try:
@@ -120,7 +120,7 @@ def _reason(row: dict) -> str:
 
 
 def _wilson(k: int, n: int) -> str:
-    from agents.evaluate import wilson
+    from agents.summary import wilson
 
     lo, hi = wilson(k, n)
     return f"{k}/{n} ({100 * k / n:.0f}%, 95% CI {100 * lo:.0f}-{100 * hi:.0f}%)" if n else "-"

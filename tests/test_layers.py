@@ -30,10 +30,11 @@ LAYERS = {
     ],
     "agents": [
         ("__init__",),
-        ("config", "wrappers", "batched", "plan_figures"),
+        ("config", "wrappers", "batched", "plan_figures", "provenance"),
         ("callbacks", "scripted", "rllib_policy"),
         ("planner_agents",),
         ("models",),
+        ("episodes", "summary", "expert", "cloning", "imitation_page"),
         ("train_ppo", "train_rllib", "evaluate", "learning_curves", "imitation"),
     ],
 }

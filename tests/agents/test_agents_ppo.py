@@ -23,8 +23,10 @@ import yaml
 pytest.importorskip("stable_baselines3")
 
 from agents import config as cf
+from agents import episodes as ep
 from agents import evaluate as ev
 from agents import models
+from agents import summary as sm
 from agents import train_ppo as tp
 from agents.planner_agents import PlannerGrip, PlannerResidual
 from agents.wrappers import ApproachShaping, TrainingInfo
@@ -125,23 +127,23 @@ def test_shipped_models_keep_their_set_up():
     assert entry["env_kwargs"] == {**ENV_KWARGS[LIFT_ENV_ID], **reward}
     env = gym.make(LIFT_ENV_ID)
     assert model.observation_space.shape == env.observation_space.shape
-    assert ev.ppo_spec(models.MODEL_DIR / "lift_palm").env_kwargs == {
+    assert ep.ppo_spec(models.MODEL_DIR / "lift_palm").env_kwargs == {
         "palm_control": True,
         "hand_features": True,
     }
     # the paper's set-up trained from perturbed starts: the suites set the start
     _, norm, _, entry = models.load_agent(models.MODEL_DIR / "fig13_perturbed")
     assert entry["env_id"] == ENV_ID and entry["env_kwargs"]["start"] == "random"
-    assert ev.ppo_spec(models.MODEL_DIR / "fig13_perturbed").env_kwargs == {}
-    spec = ev.ppo_spec(models.MODEL_DIR / "random_shapes_palm")
+    assert ep.ppo_spec(models.MODEL_DIR / "fig13_perturbed").env_kwargs == {}
+    spec = ep.ppo_spec(models.MODEL_DIR / "random_shapes_palm")
     assert spec.name == "ppo_random_shapes_palm"
     assert spec.env_kwargs == {"palm_control": True}  # the suites set the start
-    assert ev.ppo_spec(models.MODEL_DIR / "fig13_fingers").env_kwargs == {}
+    assert ep.ppo_spec(models.MODEL_DIR / "fig13_fingers").env_kwargs == {}
     # the residual agent: played through the wrapper its config names, without redraw
     model, norm, _, entry = models.load_agent(models.MODEL_DIR / "lift_residual")
     assert entry["env_id"] == LIFT_ENV_ID and norm is not None
     assert model.observation_space.shape == (env.observation_space.shape[0] + 5,)
-    spec = ev.ppo_spec(models.MODEL_DIR / "lift_residual")
+    spec = ep.ppo_spec(models.MODEL_DIR / "lift_residual")
     assert spec.wrapper == (PlannerResidual, {"scale": 0.25, "redraw": False})
     assert spec.env_kwargs == {"palm_control": True, "hand_features": True}
     # the grip agent: the planner's plan, then palm turns observing the turn probes
@@ -149,18 +151,18 @@ def test_shipped_models_keep_their_set_up():
     assert entry["env_id"] == LIFT_ENV_ID and norm is not None
     assert model.observation_space.shape == (env.observation_space.shape[0] + 13,)
     assert model.action_space.shape == (3,)
-    spec = ev.ppo_spec(models.MODEL_DIR / "lift_grip")
+    spec = ep.ppo_spec(models.MODEL_DIR / "lift_grip")
     assert spec.wrapper[0] is PlannerGrip and not spec.wrapper[1]["redraw"]
     assert spec.wrapper[1]["palm_only"] and spec.wrapper[1]["probe_turns"]
 
 
 def test_the_shipped_grip_agent_lightens_the_planners_grip():
     # the first held-out lifting shape: the planner's grasp holds the object at 3.9 W
-    seed = ev.HELDOUT_SEED
-    planner = ev.run_episode(
-        ev.PolicySpec("scripted", "scripted", ev.SCRIPTED_KWARGS), "lift", "", seed, None
+    seed = ep.HELDOUT_SEED
+    planner = ep.run_episode(
+        ep.PolicySpec("scripted", "scripted", ep.SCRIPTED_KWARGS), "lift", "", seed, None
     )
-    agent = ev.run_episode(ev.ppo_spec(models.MODEL_DIR / "lift_grip"), "lift", "", seed, None)
+    agent = ep.run_episode(ep.ppo_spec(models.MODEL_DIR / "lift_grip"), "lift", "", seed, None)
     assert planner.success and agent.success and not agent.dropped
     assert planner.steps_to_closure == agent.steps_to_closure  # the planner's lifting
     assert agent.grip_W < planner.grip_W - 1.0
@@ -472,10 +474,10 @@ def test_evaluation_refuses_more_workers_than_its_bound(capsys, monkeypatch):
 def test_policies_meet_the_same_heldout_shapes():
     vertices = slice(13, 13 + 2 * 12)  # object vertices in the observation
     obs = [
-        ev.make_env(ev.PolicySpec(kind, kind, kwargs), ev.HELDOUT_KWARGS, 4).reset(
-            seed=ev.HELDOUT_SEED
+        ep.make_env(ep.PolicySpec(kind, kind, kwargs), ep.HELDOUT_KWARGS, 4).reset(
+            seed=ep.HELDOUT_SEED
         )[0][vertices]
-        for kind, kwargs in (("scripted", ev.SCRIPTED_KWARGS), ("random", ev.RANDOM_KWARGS))
+        for kind, kwargs in (("scripted", ep.SCRIPTED_KWARGS), ("random", ep.RANDOM_KWARGS))
     ]
     assert np.array_equal(obs[0], obs[1]) and np.any(obs[0] != 0)
 
@@ -484,11 +486,11 @@ def test_policies_meet_the_same_perturbed_fig13_starts():
     # Every policy's env starts the perturbed suite's episode from the same hand, drawn by the
     # seed: the pre-liftoff placement perturbed, so it differs between seeds.
     hands = {}
-    for kind, kwargs in (("scripted", ev.SCRIPTED_KWARGS), ("random", ev.RANDOM_KWARGS)):
-        env = ev.make_env(ev.PolicySpec(kind, kind, kwargs), ev.PERTURBED_KWARGS, 4)
+    for kind, kwargs in (("scripted", ep.SCRIPTED_KWARGS), ("random", ep.RANDOM_KWARGS)):
+        env = ep.make_env(ep.PolicySpec(kind, kind, kwargs), ep.PERTURBED_KWARGS, 4)
         hands[kind] = []
         for k in range(2):
-            env.reset(seed=ev.HELDOUT_SEED + k)
+            env.reset(seed=ep.HELDOUT_SEED + k)
             hands[kind].append(env.unwrapped.state.hand.copy())
         env.close()
     np.testing.assert_array_equal(hands["scripted"], hands["random"])
@@ -501,13 +503,13 @@ def test_policies_meet_the_same_lift_starts():
     lifting model's hand features)."""
     hands = {}
     set_ups = {
-        "scripted": ev.SCRIPTED_KWARGS,
-        "random": ev.RANDOM_KWARGS,
+        "scripted": ep.SCRIPTED_KWARGS,
+        "random": ep.RANDOM_KWARGS,
         "ppo": {"palm_control": True, "hand_features": True, "start": "scene"},
     }
     for kind, kwargs in set_ups.items():
-        env = ev.make_env(ev.PolicySpec(kind, kind, kwargs), ev.LIFT_KWARGS, 4)
-        env.reset(seed=ev.HELDOUT_SEED)
+        env = ep.make_env(ep.PolicySpec(kind, kind, kwargs), ep.LIFT_KWARGS, 4)
+        env.reset(seed=ep.HELDOUT_SEED)
         hands[kind] = (env.unwrapped.state.hand.copy(), env.unwrapped.state.object_pose.copy())
         env.close()
     for kind in ("random", "ppo"):
@@ -519,11 +521,11 @@ def test_wide_suite_draws_from_the_wide_ranges():
     # Over 40 held-out seeds the wide suite's shapes use vertex counts beyond the default 8
     # and stay within 3-12; the default suite's never exceed 8.
     counts = {}
-    for suite, kwargs in ev.SHAPE_SUITES.items():
-        env = ev.make_env(ev.PolicySpec("random", "random", ev.RANDOM_KWARGS), kwargs, 4)
+    for suite, kwargs in ep.SHAPE_SUITES.items():
+        env = ep.make_env(ep.PolicySpec("random", "random", ep.RANDOM_KWARGS), kwargs, 4)
         counts[suite] = []
         for k in range(40):
-            env.reset(seed=ev.HELDOUT_SEED + k)
+            env.reset(seed=ep.HELDOUT_SEED + k)
             counts[suite].append(len(env.unwrapped.scene.object.vertices_B))
         env.close()
     assert 3 <= min(counts["wide"]) and max(counts["wide"]) <= 12
@@ -536,15 +538,15 @@ def test_wide_suite_draws_from_the_wide_ranges():
     ids=["none", "all", "half"],
 )
 def test_wilson_interval_matches_published_values(k, n, low, high):
-    lo, hi = ev.wilson(k, n)
+    lo, hi = sm.wilson(k, n)
     assert lo == pytest.approx(low, abs=1e-4) and hi == pytest.approx(high, abs=1e-4)
 
 
 def test_bootstrap_interval_brackets_the_mean():
-    lo, hi = ev.bootstrap_mean([1.0, 2.0, 3.0, 4.0])
+    lo, hi = sm.bootstrap_mean([1.0, 2.0, 3.0, 4.0])
     assert lo < 2.5 < hi
-    assert ev.bootstrap_mean([2.0, 2.0]) == (2.0, 2.0)
-    assert all(math.isnan(x) for x in ev.bootstrap_mean([]))
+    assert sm.bootstrap_mean([2.0, 2.0]) == (2.0, 2.0)
+    assert all(math.isnan(x) for x in sm.bootstrap_mean([]))
 
 
 def test_approach_shaping_is_potential_based():

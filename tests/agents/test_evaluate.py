@@ -17,8 +17,10 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from agents import config as cf
+from agents import episodes as ep
 from agents import evaluate as ev
-from agents import models
+from agents import models, provenance
+from agents import summary as sm
 from agents.planner_agents import PlannerAgent, PlannerGrip, PlannerHandover, PlannerResidual
 
 REPO = Path(__file__).resolve().parents[2]
@@ -62,7 +64,7 @@ def test_shipped_models_by_their_config_file_and_env_id():
 
 @pytest.mark.parametrize("name", sorted(SHIPPED_TEST_TIMES))
 def test_shipped_models_specs_carry_their_test_time(name):
-    assert ev.ppo_spec(models.MODEL_DIR / name).test_time == SHIPPED_TEST_TIMES[name]
+    assert ep.ppo_spec(models.MODEL_DIR / name).test_time == SHIPPED_TEST_TIMES[name]
 
 
 def test_test_time_is_declared_by_the_agent_kind():
@@ -73,22 +75,22 @@ def test_test_time_is_declared_by_the_agent_kind():
     assert PlannerGrip.test_time_of({"probe_turns": True}) == "simulator"
     assert PlannerGrip.test_time_of({"probe_turns": False, "palm_only": True}) == "planner"
     assert PlannerResidual.test_time_of({"probe_turns": True}) == "planner"  # no such option
-    assert ev.PolicySpec("scripted", "scripted").test_time == "planner"
-    assert ev.PolicySpec("random", "random").test_time == "network"
-    assert ev.PolicySpec("x", "rllib").test_time == "network"
-    assert ev.PolicySpec("x", "ppo").test_time == "network"  # no wrapper: its network alone
-    assert ev.PolicySpec("x", "ppo", wrapper=(PlannerHandover, {})).test_time == "planner"
+    assert ep.PolicySpec("scripted", "scripted").test_time == "planner"
+    assert ep.PolicySpec("random", "random").test_time == "network"
+    assert ep.PolicySpec("x", "rllib").test_time == "network"
+    assert ep.PolicySpec("x", "ppo").test_time == "network"  # no wrapper: its network alone
+    assert ep.PolicySpec("x", "ppo", wrapper=(PlannerHandover, {})).test_time == "planner"
     with pytest.raises(ValueError, match="needs test_time"):
-        ev.PolicySpec("x", "oracle")
+        ep.PolicySpec("x", "oracle")
     with pytest.raises(ValueError, match="test_time must be one of"):
-        ev.PolicySpec("x", "random", test_time="oracle")
+        ep.PolicySpec("x", "random", test_time="oracle")
     entry = {"env_wrapper": [{"agents.planner_agents.PlannerGrip": {"probe_turns": True}}]}
     assert models.entry_test_time(entry) == "simulator"
     assert models.entry_test_time({"env_wrapper": "agents.wrappers.TrainingInfo"}) == "network"
 
 
 def _episode(suite, scene, policy, seed, success=False, grip_W=math.nan, steps=math.nan):
-    return ev.Episode(
+    return ep.Episode(
         suite,
         scene,
         policy,
@@ -114,7 +116,7 @@ TEST_TIMES = {"scripted": "planner", "random": "network"}
 
 
 def test_rows_say_what_each_policy_calls_and_fig13_alone_has_no_bundled_rows():
-    rows = ev.summarize(EPISODES, TEST_TIMES)
+    rows = sm.summarize(EPISODES, TEST_TIMES)
     assert [(r["suite"], r["policy"], r["test_time"]) for r in rows] == [
         ("fig13", "scripted", "planner"),
         ("fig13", "random", "network"),
@@ -122,12 +124,12 @@ def test_rows_say_what_each_policy_calls_and_fig13_alone_has_no_bundled_rows():
         ("lift", "random", "network"),
     ]
     more = [*EPISODES, _episode("bundled", "square", "random", 0)]
-    suites = [r["suite"] for r in ev.summarize(more, TEST_TIMES)]
+    suites = [r["suite"] for r in sm.summarize(more, TEST_TIMES)]
     assert suites.count("bundled") == 2 and suites.count("fig13") == 2
 
 
 def test_empty_cells_read_n_a():
-    table = ev.markdown_table(ev.summarize(EPISODES, TEST_TIMES))
+    table = sm.markdown_table(sm.summarize(EPISODES, TEST_TIMES))
     lines = table.splitlines()
     assert lines[0].startswith("| suite | policy | test time | n | success (95% CI) |")
     assert "| fig13 | scripted | planner | 1 | 1.00 (0.21-1.00) | 1.50 ± 0.00" in table
@@ -137,19 +139,19 @@ def test_empty_cells_read_n_a():
 
 def test_summary_files_have_the_test_time_column(tmp_path, monkeypatch):
     pytest.importorskip("matplotlib", reason="the viz extra draws the chart")
-    rows = ev.summarize(EPISODES, TEST_TIMES)
-    ev.write_csv(tmp_path / "summary.csv", rows)
+    rows = sm.summarize(EPISODES, TEST_TIMES)
+    sm.write_csv(tmp_path / "summary.csv", rows)
     with open(tmp_path / "summary.csv") as f:
         read = list(csv.DictReader(f))
     assert [r["test_time"] for r in read] == ["planner", "network", "planner", "network"]
-    ev.bar_chart(tmp_path / "summary.png", rows)
+    sm.bar_chart(tmp_path / "summary.png", rows)
     assert (tmp_path / "summary.png").stat().st_size > 0
 
 
 def test_results_page_names_date_commit_command_and_network_rows():
-    rows = ev.summarize(EPISODES, TEST_TIMES)
+    rows = sm.summarize(EPISODES, TEST_TIMES)
     command = "python -m agents.evaluate --scenes fig13 --lift-episodes 2"
-    page = ev.results_page(rows, command, "2026-01-02 03:04 UTC", "abc1234")
+    page = sm.results_page(rows, command, "2026-01-02 03:04 UTC", "abc1234")
     assert page.startswith("# Results\n")
     assert "Generated on 2026-01-02 03:04 UTC at commit `abc1234` by:" in page
     assert f"```bash\n{command}\n```" in page
@@ -157,11 +159,11 @@ def test_results_page_names_date_commit_command_and_network_rows():
     assert "Rows of `planner` policies: `scripted`." in page
     assert "## `fig13`: " in page and "## `lift`: " in page and "## `bundled`" not in page
     assert "| lift | random | network | 2 |" in page
-    assert ev.git_commit(REPO) != "unknown"
+    assert provenance.git_commit(REPO) != "unknown"
 
 
 def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys):
-    rows = ev.summarize(EPISODES, TEST_TIMES)
+    rows = sm.summarize(EPISODES, TEST_TIMES)
     monkeypatch.setattr(ev, "evaluate", lambda *a, **k: rows)
     monkeypatch.setattr(ev, "default_policies", lambda *a: [])
     shipped = REPO / "docs" / "results.md"

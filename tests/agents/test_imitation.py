@@ -1,5 +1,5 @@
-"""agents.imitation: expert data from the scripted planner, behaviour cloning, the saved
-network-only model, the command's argument checks."""
+"""agents.imitation, agents.expert, agents.cloning: expert data from the scripted planner,
+behaviour cloning, the saved network-only model, the command's argument checks."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ import pickle
 import numpy as np
 import pytest
 
-from agents import imitation
-from agents.evaluate import ppo_spec
+from agents import cloning, imitation
+from agents import expert as ex
+from agents.episodes import ppo_spec
 from agents.models import load_agent
 from agents.scripted import ScriptedPolicy
 
@@ -24,25 +25,25 @@ SEED = 600
 
 @pytest.fixture(scope="module")
 def expert():
-    return imitation.expert_episode(("placement", SEED, 2))
+    return ex.expert_episode(("placement", SEED, 2))
 
 
 def test_expert_actions_are_in_the_action_space(expert):
-    space = imitation.make_env("placement").action_space
+    space = ex.make_env("placement").action_space
     assert expert["success"] and expert["steps"] == len(expert["act"]) > 0
     assert expert["act"].dtype == np.float32 and expert["act"].shape[1] == 5
     assert np.all(expert["act"] >= space.low) and np.all(expert["act"] <= space.high)
     assert expert["obs"].shape == (len(expert["act"]), 72)
-    imitation.check_actions(expert["act"], space)
+    ex.check_actions(expert["act"], space)
     with pytest.raises(ValueError, match="outside"):
-        imitation.check_actions(expert["act"] * 1.5 + 0.5, space)
+        ex.check_actions(expert["act"] * 1.5 + 0.5, space)
 
 
 def test_expert_action_is_the_planners_and_leaves_the_env_alone():
-    env = imitation.make_env("placement")
+    env = ex.make_env("placement")
     obs, info = env.reset(seed=SEED)
     state = env.unwrapped.state
-    label = imitation.expert_action(env)
+    label = ex.expert_action(env)
     assert env.unwrapped.state is state
     policy = ScriptedPolicy(env)
     policy.reset(obs, info)
@@ -50,23 +51,23 @@ def test_expert_action_is_the_planners_and_leaves_the_env_alone():
 
 
 def test_behaviour_cloning_reduces_the_loss(expert):
-    model, norm = imitation.new_model([32], seed=0)
-    imitation.set_normalization(norm, expert["obs"])
-    before = imitation.mse(model, norm, expert["obs"], expert["act"])
-    history = imitation.behaviour_clone(
+    model, norm = cloning.new_model([32], seed=0)
+    cloning.set_normalization(norm, expert["obs"])
+    before = cloning.mse(model, norm, expert["obs"], expert["act"])
+    history = cloning.behaviour_clone(
         model, norm, expert["obs"], expert["act"], epochs=30, batch_size=16, lr=3e-3
     )
-    after = imitation.mse(model, norm, expert["obs"], expert["act"])
+    after = cloning.mse(model, norm, expert["obs"], expert["act"])
     assert after < 0.5 * before
     assert history[-1]["train_loss"] < history[0]["train_loss"]
 
 
 def test_saved_model_acts_from_the_observation_alone(expert, tmp_path):
-    model, norm = imitation.new_model([32], seed=0)
-    imitation.set_normalization(norm, expert["obs"])
-    imitation.save_model(model, norm, tmp_path, {"test": True}, [32])
+    model, norm = cloning.new_model([32], seed=0)
+    cloning.set_normalization(norm, expert["obs"])
+    cloning.save_model(model, norm, tmp_path, {"test": True}, [32])
     loaded, loaded_norm, _, entry = load_agent(tmp_path)
-    assert entry["env_id"] == imitation.ENV_ID and entry["env_kwargs"]["hand_features"]
+    assert entry["env_id"] == ex.ENV_ID and entry["env_kwargs"]["hand_features"]
     spec = ppo_spec(tmp_path)
     assert spec.test_time == "network" and spec.wrapper is None
     # nothing reachable from the policy is the planner, the simulator or an env
@@ -76,11 +77,11 @@ def test_saved_model_acts_from_the_observation_alone(expert, tmp_path):
     assert loaded.get_env() is None and getattr(loaded_norm, "venv", None) is None
     for value in vars(loaded_norm).values():  # statistics and settings only
         assert not type(value).__module__.startswith(("agents", "grasp_env"))
-    env = imitation.make_env("scene")
+    env = ex.make_env("scene")
     obs, _ = env.reset(seed=3)
-    action = imitation.network_action(loaded, loaded_norm, obs)
+    action = ex.network_action(loaded, loaded_norm, obs)
     assert env.action_space.contains(action.astype(np.float32))
-    np.testing.assert_array_equal(action, imitation.network_action(loaded, loaded_norm, obs))
+    np.testing.assert_array_equal(action, ex.network_action(loaded, loaded_norm, obs))
 
 
 @pytest.mark.parametrize(
@@ -105,11 +106,11 @@ def test_argument_errors_name_the_flag_and_value(argv, words, tmp_path, capsys):
 
 
 def test_interleave_spreads_both_starts():
-    merged = imitation.interleave(list(range(6)), ["a", "b"])
+    merged = ex.interleave(list(range(6)), ["a", "b"])
     assert sorted(map(str, merged)) == sorted(map(str, [*range(6), "a", "b"]))
     assert merged[:4].count("a") == 1
 
 
 def test_dagger_labels_weigh_dagger_weight():
     data = {"round": np.array([0, 0, 1, 2], np.int16)}
-    np.testing.assert_array_equal(imitation._weights(data, 5.0), [1, 1, 5, 5])
+    np.testing.assert_array_equal(cloning.sample_weights(data, 5.0), [1, 1, 5, 5])

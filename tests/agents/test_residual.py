@@ -17,7 +17,7 @@ import pytest
 
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents import train_ppo
-from agents.evaluate import LIFT_KWARGS, PolicySpec, make_env
+from agents.episodes import LIFT_KWARGS, PolicySpec, make_env
 from agents.models import shipped_name
 from agents.planner_agents import PlannerGrip, PlannerResidual, planner_wrapper
 from agents.scripted import ScriptedPolicy

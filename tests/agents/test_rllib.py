@@ -188,12 +188,13 @@ def test_algorithm_restores(run):
 def test_evaluation_table_has_the_checkpoint(run, tmp_path):
     pytest.importorskip("matplotlib")
     pytest.importorskip("imageio")
+    from agents import episodes as ep
     from agents import evaluate as ev
 
-    spec = ev.rllib_spec(run[0])
+    spec = ep.rllib_spec(run[0])
     assert spec.name == "rllib_FrictionlessGrasp-v0"
     assert spec.env_kwargs == {"max_episode_steps": 20}  # no reward weights
-    random = ev.PolicySpec("random", "random", ev.RANDOM_KWARGS)
+    random = ep.PolicySpec("random", "random", ep.RANDOM_KWARGS)
     rows = ev.evaluate([spec, random], tmp_path, episodes=1, scenes=["fig13"], max_steps=10)
     assert {r["policy"] for r in rows} == {spec.name, "random"}
     assert all(r["errors"] == 0 for r in rows)
@@ -211,7 +212,7 @@ def test_evaluate_refuses_a_path_that_is_no_checkpoint(tmp_path, capsys):
 def test_evaluation_set_up_follows_the_env_id(tmp_path):
     """A run on the random-shapes id is evaluated with palm control, the suite choosing the
     scene or shapes and the start; reward weights stay the env's."""
-    from agents import evaluate as ev
+    from agents import episodes as ep
 
     (tmp_path / "checkpoint").mkdir()
     (tmp_path / "checkpoint" / "rllib_checkpoint.json").write_text("{}")
@@ -219,7 +220,7 @@ def test_evaluation_set_up_follows_the_env_id(tmp_path):
     (tmp_path / "config.yml").write_text(
         yaml.safe_dump({"FrictionlessGraspRandomShapes-v0": entry})
     )
-    spec = ev.rllib_spec(tmp_path)
+    spec = ep.rllib_spec(tmp_path)
     assert spec.name == "rllib_FrictionlessGraspRandomShapes-v0"
     assert spec.env_kwargs == {"palm_control": True}  # the suites set the start
     assert spec.model_dir == str(tmp_path / "checkpoint")
