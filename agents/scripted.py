@@ -10,7 +10,8 @@ hand, object, contacts with force arrows, a title per frame, a legend), ``grip_b
 (``y*`` against the first finger's angle along every four-contact branch the grip
 adjustment evaluated, zoomed to the adjustment, like Fig. 14), ``plan.gif`` (the whole
 plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase);
-the images are drawn by :mod:`agents.plan_figures`.
+the images are drawn by :mod:`agents.plan_figures` and :mod:`agents.grip_branches`, the
+plan's data and summary by :mod:`agents.plan_report`.
 It prints a summary and exits with status 0 on form closure, 1 if the plan fails (the object
 is tippable but no grasp was found; the summary says why, and a failed attempt that passed
 through form closure without holding the object off the support is reported as such), 3 if
@@ -46,8 +47,6 @@ motion on the env's own step function and replays it exactly.
 from __future__ import annotations
 
 import argparse
-import inspect
-import itertools
 import json
 import logging
 import math
@@ -57,13 +56,13 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.plan_figures import write_branch_plot, write_filmstrip, write_gif
+from agents.grip_branches import write_branch_plot
+from agents.plan_figures import write_filmstrip, write_gif
+from agents.plan_report import plan_to_dict, summary
 from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
-from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.errors import ComputationError
-from grasp_env.mechanics import closure as mech
 from grasp_env.simulator import Simulator
 
 #: Object pose deviation (relative to the object's size) from the plan that makes the
@@ -81,117 +80,6 @@ PLAN_CACHE_SIZE = 16
 _PLAN_CACHE: dict[tuple, planning.Plan] = {}
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_TIPPABLE = 0, 1, 2, 3
-
-
-# ---------------------------------------------------------------------- outputs
-def plan_to_dict(plan: planning.Plan) -> dict:
-    """The plan as JSON-ready data: status, phases and every step's state."""
-    steps = []
-    for i, st in enumerate(plan.steps):
-        s = st.state
-        steps.append(
-            {
-                "index": i,
-                "phase": st.phase,
-                "note": st.note,
-                "palm": s.palm_pose.tolist(),
-                "fingers": s.finger_angles.tolist(),
-                "object_pose": s.object_pose.tolist(),
-                "contacts": [
-                    {
-                        "body": c.body,
-                        "kind": c.kind,
-                        "point": c.point.tolist(),
-                        "normal": c.normal.tolist(),
-                        "force": float(c.force),
-                    }
-                    for c in s.contacts
-                ],
-                "form_closure": bool(mech.is_form_closure(s)),
-                "grip": st.grip if math.isfinite(st.grip) else None,
-            }
-        )
-    return {
-        "status": plan.status,
-        "message": plan.message,
-        "placement": plan.placement,
-        "cpu_time": plan.cpu_time,
-        "phases": {k: list(v) for k, v in plan.phase_bounds().items()},
-        "form_closure_step": plan.form_closure_step(),
-        "steps": steps,
-    }
-
-
-def env_actions(dh: np.ndarray, width: float, finger_step: float, palm_step) -> int:
-    """How many ``FrictionlessGrasp-v0`` actions move the hand by ``dh`` (shape (5,)): equal
-    actions, none beyond ``finger_step`` (rad) a finger or ``palm_step`` (palm widths, palm
-    widths, rad) the palm."""
-    scale = np.array(
-        [width * palm_step[0], width * palm_step[1], palm_step[2], finger_step, finger_step]
-    )
-    return max(1, math.ceil(float(np.abs(np.asarray(dh) / scale).max()) - 1e-9))
-
-
-def env_closure_step(plan: planning.Plan, scene) -> tuple[int, int] | None:
-    """Where ``FrictionlessGrasp-v0`` from the scene's start, with the env's default step
-    sizes, reaches the plan's form closure, as ``(actions to the plan's placement, env step
-    of form closure)``; None without form closure or where the plan's palm is not the scene's
-    (the env would first move the palm there: :class:`ScriptedPolicy`).
-
-    The plan counts its steps from its pre-liftoff placement (step 0: the fingers already
-    closed on the object), one step a planned increment; the env starts from the scene's
-    hand (fingers open) and counts actions, each moving a finger at most ``max_finger_step``:
-    closing the fingers onto the object takes several actions, and so does an increment
-    larger than one action."""
-    fc = plan.form_closure_step()
-    if fc is None or not np.allclose(plan.steps[0].state.hand[:3], scene.palm.pose):
-        return None
-    defaults = inspect.signature(FrictionlessGraspEnv.__init__).parameters
-    finger, palm = defaults["max_finger_step"].default, defaults["max_palm_step"].default
-    hands = [scene.initial_hand] + [st.state.hand for st in plan.steps[: fc + 1]]
-    counts = [
-        env_actions(np.subtract(b, a), scene.palm.width, finger, palm)
-        for a, b in itertools.pairwise(hands)
-    ]
-    return counts[0], sum(counts)
-
-
-def summary(plan: planning.Plan, scene=None) -> str:
-    """Phase boundaries, the form-closure step (and where the env from the scene's start
-    reaches it, :func:`env_closure_step`), the final contacts and y*, the CPU time."""
-    lines = [f"status: {plan.status} ({plan.message})"]
-    if plan.placement:
-        lines.append(f"pre-liftoff placement: {plan.placement}")
-    for phase, (a, b) in plan.phase_bounds().items():
-        lines.append(f"  {phase:16s} steps {a:4d} .. {b:4d}")
-    fc = plan.form_closure_step()
-    if plan.success:
-        lines.append(f"form closure at step: {fc} (plan steps from the pre-liftoff placement)")
-        env = env_closure_step(plan, scene) if scene is not None else None
-        if env is not None:
-            lines.append(
-                f"  in FrictionlessGrasp-v0 from the scene's start (agents.evaluate): env step "
-                f"{env[1]}: {env[0]} actions close the fingers from the scene's open hand to "
-                f"the placement, then {env[1] - env[0]} for the {fc} lifting increments (at "
-                "most max_finger_step a finger an action)"
-            )
-    elif fc is not None:
-        lines.append(
-            f"form closure: none held; the failed attempt passed through form closure at step "
-            f"{fc} without holding the object off the support"
-        )
-    else:
-        lines.append("form closure: never")
-    if plan.steps:
-        final = plan.steps[-1]
-        bodies = ", ".join(f"{c.body} ({c.kind})" for c in final.state.contacts)
-        lines.append(f"final contacts: {len(final.state.contacts)}: {bodies}")
-        weight = final.state.scene.object_weight
-        if math.isfinite(final.grip):
-            what = "final y*" if plan.success else "y* of the final state (not a grasp)"
-            lines.append(f"{what}: {final.grip:.6g} ({final.grip / weight:.4f} object weights)")
-    lines.append(f"CPU time: {plan.cpu_time:.2f} s")
-    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,7 +30,15 @@ LAYERS = {
     ],
     "agents": [
         ("__init__",),
-        ("config", "wrappers", "batched", "plan_figures", "provenance"),
+        (
+            "config",
+            "wrappers",
+            "batched",
+            "plan_figures",
+            "plan_report",
+            "grip_branches",
+            "provenance",
+        ),
         ("callbacks", "scripted", "rllib_policy"),
         ("planner_agents",),
         ("models",),

@@ -1,5 +1,5 @@
-"""agents.plan_figures: which steps the filmstrip shows, and the grip adjustment's record and
-plot (like the paper's Fig. 14)."""
+"""agents.plan_figures, agents.grip_branches: which steps the filmstrip shows, and the grip
+adjustment's record and plot (like the paper's Fig. 14)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from agents.plan_figures import frame_indices, plan_events, write_branch_plot
+from agents.grip_branches import write_branch_plot
+from agents.plan_figures import frame_indices, plan_events
 from grasp_env import planning
 from grasp_env.simulator import Simulator
 

@@ -19,7 +19,7 @@ import yaml
 from image_checks import ink_runs
 
 import grasp_env
-from agents import scripted
+from agents import plan_report, scripted
 from agents.scripted import EXIT_FAILED, EXIT_NOT_TIPPABLE, ScriptedPolicy, main
 from grasp_env.envs.shapes import scene_to_dict
 from grasp_env.planning import centred_hand
@@ -56,7 +56,7 @@ def test_cli_counts_the_steps_to_closure_of_the_plan_and_of_the_env(fig13_out, c
     plan = json.loads((fig13_out / "plan.json").read_text())
     assert plan["form_closure_step"] == 18
     scene = grasp_env.load_scene("fig13")
-    assert scripted.env_closure_step(scripted.planning.plan_grasp(scene), scene) == (9, 27)
+    assert plan_report.env_closure_step(scripted.planning.plan_grasp(scene), scene) == (9, 27)
 
 
 def test_cli_writes_every_output(fig13_out, capsys):

@@ -1,0 +1,126 @@
+"""A grasp plan reported, for ``python -m agents.scripted``: the plan as JSON-ready data
+(:func:`plan_to_dict`), where ``FrictionlessGrasp-v0`` from the scene's start reaches its
+form closure (:func:`env_closure_step`: the env counts actions from the open hand, the plan
+increments from its placement) and the summary the command prints (:func:`summary`)."""
+
+from __future__ import annotations
+
+import inspect
+import itertools
+import math
+
+import numpy as np
+
+from grasp_env import planning
+from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.mechanics import closure as mech
+
+
+def plan_to_dict(plan: planning.Plan) -> dict:
+    """The plan as JSON-ready data: status, phases and every step's state."""
+    steps = []
+    for i, st in enumerate(plan.steps):
+        s = st.state
+        steps.append(
+            {
+                "index": i,
+                "phase": st.phase,
+                "note": st.note,
+                "palm": s.palm_pose.tolist(),
+                "fingers": s.finger_angles.tolist(),
+                "object_pose": s.object_pose.tolist(),
+                "contacts": [
+                    {
+                        "body": c.body,
+                        "kind": c.kind,
+                        "point": c.point.tolist(),
+                        "normal": c.normal.tolist(),
+                        "force": float(c.force),
+                    }
+                    for c in s.contacts
+                ],
+                "form_closure": bool(mech.is_form_closure(s)),
+                "grip": st.grip if math.isfinite(st.grip) else None,
+            }
+        )
+    return {
+        "status": plan.status,
+        "message": plan.message,
+        "placement": plan.placement,
+        "cpu_time": plan.cpu_time,
+        "phases": {k: list(v) for k, v in plan.phase_bounds().items()},
+        "form_closure_step": plan.form_closure_step(),
+        "steps": steps,
+    }
+
+
+def env_actions(dh: np.ndarray, width: float, finger_step: float, palm_step) -> int:
+    """How many ``FrictionlessGrasp-v0`` actions move the hand by ``dh`` (shape (5,)): equal
+    actions, none beyond ``finger_step`` (rad) a finger or ``palm_step`` (palm widths, palm
+    widths, rad) the palm."""
+    scale = np.array(
+        [width * palm_step[0], width * palm_step[1], palm_step[2], finger_step, finger_step]
+    )
+    return max(1, math.ceil(float(np.abs(np.asarray(dh) / scale).max()) - 1e-9))
+
+
+def env_closure_step(plan: planning.Plan, scene) -> tuple[int, int] | None:
+    """Where ``FrictionlessGrasp-v0`` from the scene's start, with the env's default step
+    sizes, reaches the plan's form closure, as ``(actions to the plan's placement, env step
+    of form closure)``; None without form closure or where the plan's palm is not the scene's
+    (the env would first move the palm there: ``agents.scripted.ScriptedPolicy``).
+
+    The plan counts its steps from its pre-liftoff placement (step 0: the fingers already
+    closed on the object), one step a planned increment; the env starts from the scene's
+    hand (fingers open) and counts actions, each moving a finger at most ``max_finger_step``:
+    closing the fingers onto the object takes several actions, and so does an increment
+    larger than one action."""
+    fc = plan.form_closure_step()
+    if fc is None or not np.allclose(plan.steps[0].state.hand[:3], scene.palm.pose):
+        return None
+    defaults = inspect.signature(FrictionlessGraspEnv.__init__).parameters
+    finger, palm = defaults["max_finger_step"].default, defaults["max_palm_step"].default
+    hands = [scene.initial_hand] + [st.state.hand for st in plan.steps[: fc + 1]]
+    counts = [
+        env_actions(np.subtract(b, a), scene.palm.width, finger, palm)
+        for a, b in itertools.pairwise(hands)
+    ]
+    return counts[0], sum(counts)
+
+
+def summary(plan: planning.Plan, scene=None) -> str:
+    """Phase boundaries, the form-closure step (and where the env from the scene's start
+    reaches it, :func:`env_closure_step`), the final contacts and y*, the CPU time."""
+    lines = [f"status: {plan.status} ({plan.message})"]
+    if plan.placement:
+        lines.append(f"pre-liftoff placement: {plan.placement}")
+    for phase, (a, b) in plan.phase_bounds().items():
+        lines.append(f"  {phase:16s} steps {a:4d} .. {b:4d}")
+    fc = plan.form_closure_step()
+    if plan.success:
+        lines.append(f"form closure at step: {fc} (plan steps from the pre-liftoff placement)")
+        env = env_closure_step(plan, scene) if scene is not None else None
+        if env is not None:
+            lines.append(
+                f"  in FrictionlessGrasp-v0 from the scene's start (agents.evaluate): env step "
+                f"{env[1]}: {env[0]} actions close the fingers from the scene's open hand to "
+                f"the placement, then {env[1] - env[0]} for the {fc} lifting increments (at "
+                "most max_finger_step a finger an action)"
+            )
+    elif fc is not None:
+        lines.append(
+            f"form closure: none held; the failed attempt passed through form closure at step "
+            f"{fc} without holding the object off the support"
+        )
+    else:
+        lines.append("form closure: never")
+    if plan.steps:
+        final = plan.steps[-1]
+        bodies = ", ".join(f"{c.body} ({c.kind})" for c in final.state.contacts)
+        lines.append(f"final contacts: {len(final.state.contacts)}: {bodies}")
+        weight = final.state.scene.object_weight
+        if math.isfinite(final.grip):
+            what = "final y*" if plan.success else "y* of the final state (not a grasp)"
+            lines.append(f"{what}: {final.grip:.6g} ({final.grip / weight:.4f} object weights)")
+    lines.append(f"CPU time: {plan.cpu_time:.2f} s")
+    return "\n".join(lines)
