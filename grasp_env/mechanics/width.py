@@ -18,7 +18,7 @@ import numpy as np
 
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene import Scene
-from grasp_env.core.scene_loading import convex_polygon
+from grasp_env.core.scene_validation import convex_polygon
 
 __all__ = ["object_vertices_W", "object_width", "width_direction"]
 
@@ -38,7 +38,7 @@ def object_vertices_W(scene_or_vertices: Scene | np.ndarray) -> np.ndarray:
     Raises:
         SceneError: a ``ValueError`` naming ``scene_or_vertices`` and showing the value: the
             polygon checks of a scene's ``object.vertices``
-            (:func:`~grasp_env.core.scene_loading.convex_polygon`; real, finite coordinates,
+            (:func:`~grasp_env.core.scene_validation.convex_polygon`; real, finite coordinates,
             no repeated point, counter-clockwise, strictly convex, not a star).
     """
     if isinstance(scene_or_vertices, Scene):
