@@ -34,7 +34,8 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from benchmarks.common import headless, parser, table, write
-from benchmarks.soak import new_record, rest_on_stable_edge, run_env, stress_scene
+from benchmarks.soak import new_record, run_env
+from benchmarks.soak_shapes import rest_on_stable_edge, stress_scene
 
 FAMILIES = (
     "hull", "sliver", "30-gon", "bulge", "tiny", "wide", "density", "touching", "scaled", "ids",

@@ -5,11 +5,11 @@ An episode is named by its suite and seed; the same pair always gives the same e
 actions (on the same arithmetic):
 
 * ``default``: the env's own shape randomizer (``shape_randomizer=True``, fig13 hand);
-* ``extreme``: :func:`benchmarks.soak.random_stress_scene` restricted to ``EXTREME_KINDS``
+* ``extreme``: :func:`benchmarks.soak_shapes.random_stress_scene` restricted to ``EXTREME_KINDS``
   (slivers, near-circles, nearly collinear vertices, a bulge of 1e-12..1e-9 on the resting
   edge, on the support or sunk into it), with the soak's aspect (to 1:30) and density
   (1e-3..1e3) ranges;
-* ``soak``: the soak's whole stress population (every kind of :data:`soak.SCENE_KINDS`).
+* ``soak``: the soak's whole stress population (every kind of :data:`soak_shapes.SCENE_KINDS`).
 
 Seed ``s`` starts from ``STARTS[s % 3]`` (all three starts of the env), resets with
 ``seed=s`` and takes palm-control actions from their own generator (:func:`action_rng`, not
@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
-from benchmarks import soak
+from benchmarks import soak, soak_shapes
 
 SUITES = ("default", "extreme", "soak")
 STARTS = ("scene", "preliftoff", "random")
@@ -52,10 +52,10 @@ def make_env(suite: str, seed: int) -> tuple[gym.Env, str]:
     if suite not in _SHAPE_STREAM:
         raise ValueError(f"unknown suite {suite!r}; choose from {SUITES}")
     rng = np.random.default_rng([_SHAPE_STREAM[suite], seed])
-    kinds = EXTREME_KINDS if suite == "extreme" else soak.SCENE_KINDS
+    kinds = EXTREME_KINDS if suite == "extreme" else soak_shapes.SCENE_KINDS
     last: Exception | None = None
     for _ in range(_TRIES):
-        scene = soak.random_stress_scene(rng, kinds)
+        scene = soak_shapes.random_stress_scene(rng, kinds)
         try:
             env = gym.make("FrictionlessGrasp-v0", scene=scene, palm_control=True, start=start)
         except ValueError as exc:  # e.g. no room for the pre-liftoff hand: draw another

@@ -25,6 +25,8 @@ from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import soak
 
+from benchmarks import soak_shapes
+
 
 def assert_clean(records: list[dict]) -> dict:
     s = soak.summarise(records)
@@ -74,7 +76,7 @@ def test_random_stress_scenes_cover_the_ranges() -> None:
     rng = np.random.default_rng(0)
     kinds, sizes, densities, counts, thinness = set(), [], [], [], []
     for _ in range(300):
-        d = soak.random_stress_scene(rng)
+        d = soak_shapes.random_stress_scene(rng)
         sc = grasp_env.load_scene(d)
         v = sc.object.vertices_B
         kinds.add(d["description"])
@@ -83,7 +85,7 @@ def test_random_stress_scenes_cover_the_ranges() -> None:
         densities.append(d["object"]["density"])
         counts.append(len(v))
         thinness.append(float(np.ptp(v[:, 1])) / size)  # resting on its most stable edge
-    assert kinds == set(soak.SCENE_KINDS)
+    assert kinds == set(soak_shapes.SCENE_KINDS)
     # "parallel" and "collinear" move a vertex by up to 1e-2 of the diameter
     assert min(sizes) < 0.1 and max(sizes) > 0.7 and max(sizes) <= 0.8 * (1 + 1e-2)
     assert min(densities) < 3e-3 and max(densities) > 300
@@ -99,7 +101,7 @@ def test_bulge_on_the_resting_edge(rest: str) -> None:
     import grasp_env
 
     for seed in range(20):
-        v = soak.bulge_polygon(np.random.default_rng(seed), 6, 0.4, 3.0, rest)
+        v = soak_shapes.bulge_polygon(np.random.default_rng(seed), 6, 0.4, 3.0, rest)
         a, m, b = (v[-1], v[0], v[1]) if rest == "right" else (v[0], v[1], v[2])
         d = b - a
         offset = float(d[0] * (a[1] - m[1]) - d[1] * (a[0] - m[0])) / float(np.hypot(*d))
@@ -109,7 +111,7 @@ def test_bulge_on_the_resting_edge(rest: str) -> None:
             assert a[1] == b[1] == 0.0 and -1e-9 <= m[1] < 0.0
         else:
             assert v[0, 1] == v[1, 1] == 0.0 and v[2:, 1].min() > 0.0
-        grasp_env.load_scene(soak.stress_scene(v, density=1.0))  # a valid scene
+        grasp_env.load_scene(soak_shapes.stress_scene(v, density=1.0))  # a valid scene
 
 
 def rss_mb() -> float:

@@ -2,7 +2,7 @@
 
 Hypothesis draws convex polygons over the stress ranges (3-12 vertices, diameter 5%-80% of
 the palm width, aspect up to 1:20, masses 1e-3..10, nearly collinear vertices, very short
-edges, nearly parallel edges, slivers: :func:`soak.stress_polygon`) and random hand paths or
+edges, nearly parallel edges, slivers: :func:`soak_shapes.stress_polygon`) and random hand paths or
 env action sequences. After every step the state is checked by
 :func:`grasp_env.testing.check_state`, an independent re-computation (separating-axis
 penetration, contact gaps from the points and normals, every touching vertex-body pair
@@ -32,6 +32,8 @@ from grasp_env.errors import SceneError
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import soak
 
+from benchmarks import soak_shapes
+
 #: Increment cap of one hand move: no valid move needs more than a few dozen increments.
 MAX_ITERATIONS = 400
 #: Default run: few examples and no shrinking (shrinking a failure takes minutes; the slow
@@ -57,14 +59,14 @@ SLOW = settings(
 
 @st.composite
 def polygons(draw: st.DrawFn) -> np.ndarray:
-    """A stress polygon resting on y = 0 (see :func:`soak.stress_polygon`)."""
-    kind = draw(st.sampled_from(soak.KINDS))
+    """A stress polygon resting on y = 0 (see :func:`soak_shapes.stress_polygon`)."""
+    kind = draw(st.sampled_from(soak_shapes.KINDS))
     n = draw(st.integers(3, 12))
     size = draw(st.floats(0.05, 0.8))
     aspect = math.exp(draw(st.floats(0.0, math.log(20.0))))
     eps = 10 ** draw(st.floats(-6.0, -2.0))
     seed = draw(st.integers(0, 2**32 - 1))
-    return soak.stress_polygon(np.random.default_rng(seed), n, size, aspect, kind, eps)
+    return soak_shapes.stress_polygon(np.random.default_rng(seed), n, size, aspect, kind, eps)
 
 
 @st.composite
@@ -72,7 +74,7 @@ def scenes(draw: st.DrawFn) -> grasp_env.Scene:
     poly = draw(polygons())
     mass = 10 ** draw(st.floats(-3.0, 1.0))
     try:
-        return grasp_env.load_scene(soak.stress_scene(poly, mass))
+        return grasp_env.load_scene(soak_shapes.stress_scene(poly, mass))
     except SceneError:
         assume(False)  # wider than the hanging fingers: not a valid start
         raise
@@ -285,7 +287,7 @@ def test_regression_object_tunnels_through_finger() -> None:
     inside the other, penetration 0.05..0.17).
     """
     poly = np.array(TUNNEL_POLYGON) - [0.30381687, 0.0]
-    scene = grasp_env.load_scene(soak.stress_scene(poly, 1.0))
+    scene = grasp_env.load_scene(soak_shapes.stress_scene(poly, 1.0))
     run_path(
         scene,
         [
@@ -330,7 +332,8 @@ def test_regression_jam_after_lost_contact_is_held() -> None:
     residual 1.8e-6 x weight, an admissible descent of the same size; with the simulator of
     commit bb97343 plus the uncommitted changes of 01:50 UTC on 2026-11-22). This test is the
     reproducer."""
-    scene = grasp_env.load_scene(soak.stress_scene(np.array(UNHELD_POLYGON), 0.03590536183244385))
+    poly = np.array(UNHELD_POLYGON)
+    scene = grasp_env.load_scene(soak_shapes.stress_scene(poly, 0.03590536183244385))
     run_env(scene, "random", UNHELD_ACTIONS, seed=83305122)
 
 
