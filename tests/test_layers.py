@@ -25,7 +25,7 @@ LAYERS = {
         ("mechanics",),
         ("simulator", "testing"),
         ("planning",),
-        ("envs", "render"),
+        ("envs", "render", "view"),
         ("analyze", "cli", "__init__"),
     ],
     "agents": [
