@@ -29,7 +29,6 @@ suite: about 3 minutes on 2 cores).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import subprocess
@@ -41,6 +40,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+from benchmarks.blas_worker import BLAS_VARS, blas_libraries, play, worker
 from benchmarks.common import OUT, REPO, headless, parser, table, write
 from grasp_env.cli import out_dir_problem
 
@@ -51,89 +51,6 @@ L2_SIZE = "512"
 SUITES = ("default", "extreme")
 #: Largest share of episodes with a discrete-outcome difference, per suite.
 TARGETS = {"default": 0.0, "extreme": 1e-3}
-BLAS_VARS = ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE")
-
-
-# ---------------------------------------------------------------------------------------
-# Worker: one core type, one suite
-# ---------------------------------------------------------------------------------------
-
-
-def blas_libraries() -> list[dict[str, Any]]:
-    """The loaded OpenBLAS libraries: file, version, architecture (``threadpoolctl``)."""
-    from threadpoolctl import threadpool_info
-
-    return [
-        {
-            "library": "/".join(Path(i["filepath"]).parts[-2:]),
-            "version": i.get("version"),
-            "architecture": i.get("architecture"),
-        }
-        for i in threadpool_info()
-        if i.get("internal_api") == "openblas"
-    ]
-
-
-def step_record(env: Any, info: dict, terminated: bool, truncated: bool) -> list[Any]:
-    """``[digest, object pose, discrete outcome]`` of the env's current state."""
-    import numpy as np
-
-    from benchmarks.episodes import contact_keys
-
-    state = env.unwrapped.state
-    parts = [state.object_pose, state.hand]
-    for c in state.contacts:
-        parts += [c.point, c.normal, [c.force]]
-    raw = np.concatenate([np.asarray(p, dtype=np.float64).ravel() for p in parts]).tobytes()
-    error = info.get("sim_error")
-    discrete = [
-        contact_keys(env),
-        list(info["events"]) if error is None else [],  # a failed step keeps the old ones
-        bool(info["jammed"]),
-        bool(info["hand_blocked"]),
-        bool(info["form_closure"]),
-        bool(terminated),
-        bool(truncated),
-        bool(info["is_success"]),
-        None if error is None else str(error).split(":", 1)[0],
-    ]
-    digest = hashlib.blake2b(raw, digest_size=12).hexdigest()
-    return [digest, [float(x) for x in state.object_pose], discrete]
-
-
-def play(suite: str, seed: int, steps: int) -> dict[str, Any]:
-    """Play episode ``(suite, seed)`` for up to ``steps`` steps; its per-step records."""
-    from benchmarks.episodes import action_rng, make_env, random_action, start_of
-
-    env, kind = make_env(suite, seed)
-    rng = action_rng(seed)
-    records: list[list[Any]] = []
-    try:
-        _, info = env.reset(seed=seed)
-        records.append(step_record(env, info, False, False))
-        for _ in range(steps):
-            _, _, terminated, truncated, info = env.step(random_action(rng))
-            records.append(step_record(env, info, terminated, truncated))
-            if terminated or truncated:
-                break
-    except Exception as exc:  # an outcome too: it ends the episode, recorded as its last step
-        records.append([f"raised {type(exc).__name__}", [], ["raised", type(exc).__name__]])
-    env.close()
-    return {"seed": seed, "start": start_of(seed), "kind": kind, "steps": records}
-
-
-def worker(suite: str, seeds: Sequence[int], steps: int) -> dict[str, Any]:
-    """The record of one worker process: its BLAS environment, libraries and episodes."""
-    headless()
-    t0 = time.process_time()
-    episodes = [play(suite, s, steps) for s in seeds]
-    return {
-        "suite": suite,
-        "environ": {k: os.environ.get(k) for k in BLAS_VARS},
-        "blas": blas_libraries(),  # after the episodes: scipy's OpenBLAS is loaded by then
-        "cpu": time.process_time() - t0,
-        "episodes": episodes,
-    }
 
 
 # ---------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ import pytest
 from benchmarks import (
     batched,
     blas_variation,
+    blas_worker,
     edge_probe,
     memory,
     planner_shapes,
@@ -130,7 +131,7 @@ def test_blas_variation_report(tmp_path):
         assert forced["environ"]["OPENBLAS_CORETYPE"] == core
         assert forced["blas"] and {lib["architecture"] for lib in forced["blas"]} == {core}
         unset = report["workers"]["unset"][name]
-        assert unset["environ"] == dict.fromkeys(blas_variation.BLAS_VARS)
+        assert unset["environ"] == dict.fromkeys(blas_worker.BLAS_VARS)
         assert forced["steps"] == unset["steps"] > 0
         row = report["suites"][name][core]
         assert row["episodes"] == 1
