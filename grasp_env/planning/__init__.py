@@ -2,7 +2,8 @@
 
 * :mod:`~grasp_env.planning.preliftoff`: hand placements from which squeezing tips the
   object toward the palm (the tippability regions, Fig. 4, also about the pivot of a
-  holding fingertip that cannot reach the support contact; the centred placement);
+  holding fingertip that cannot reach the support contact), and
+  :mod:`~grasp_env.planning.centred`: the centred placement;
 * :mod:`~grasp_env.planning.lifting`: finger increments with the palm fixed until form
   closure off the support;
 * :mod:`~grasp_env.planning.grip`: descent of ``y*`` along the four-contact branches;
