@@ -38,7 +38,8 @@ def rllib_rate(
     iteration's learner update in seconds."""
     from ray.rllib.utils.metrics import LEARNER_UPDATE_TIMER, TIMERS
 
-    from agents.train_rllib import build_config, env_steps
+    from agents.rllib_config import build_config
+    from agents.rllib_training import env_steps
 
     config = build_config(entry, env_id, runners, seed)
     algo = config.env_runners(num_envs_per_env_runner=envs).build_algo()
@@ -64,9 +65,11 @@ def run(
     import ray
     import torch
 
+    from agents.config import load_config
+    from agents.rllib_config import get_entry
+    from agents.rllib_training import start_ray
     from agents.train_ppo import get_entry as sb3_entry
     from agents.train_ppo import load_config as sb3_config
-    from agents.train_rllib import get_entry, load_config, start_ray
     from benchmarks.ppo_throughput import steps_per_second, warmed_model
 
     headless()

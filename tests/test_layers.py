@@ -39,7 +39,7 @@ LAYERS = {
             "grip_branches",
             "provenance",
         ),
-        ("callbacks", "scripted", "rllib_policy"),
+        ("callbacks", "scripted", "rllib_policy", "rllib_config", "rllib_training"),
         ("planner_agents",),
         ("models",),
         ("episodes", "summary", "expert", "cloning", "imitation_page"),

@@ -22,19 +22,22 @@ import yaml
 pytest.importorskip("ray")
 pytest.importorskip("ray.rllib")
 
+from agents import rllib_config as rc
+from agents import rllib_training as rt
 from agents import train_rllib as tr
+from agents.config import load_config
 from agents.rllib_policy import RLlibPolicy, load_run
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "rllib_ppo.yml"
-ENTRIES = list(tr.load_config(CONFIG))
+ENTRIES = list(load_config(CONFIG))
 BASE = ["--env", "FrictionlessGrasp-v0", "--num-env-runners", "1"]
 
 
 @pytest.mark.parametrize("env_id", ENTRIES, ids=ENTRIES)
 def test_config_entry_builds(env_id):
-    entry = tr.get_entry(tr.load_config(CONFIG), env_id)
-    tr.EntryEnv(tr.env_config(entry, env_id)).close()
-    config = tr.build_config(entry, env_id, 2, seed=0)
+    entry = rc.get_entry(load_config(CONFIG), env_id)
+    rc.EntryEnv(rc.env_config(entry, env_id)).close()
+    config = rc.build_config(entry, env_id, 2, seed=0)
     config.validate()
     assert config.train_batch_size_per_learner == 1024
     assert config.get_rollout_fragment_length() == 512  # n_steps of configs/ppo.yml
@@ -110,7 +113,7 @@ def test_iteration_without_samples_goes_on():
     results = [{}, *({ENV_RUNNER_RESULTS: {NUM_ENV_STEPS_SAMPLED_LIFETIME: n}} for n in (64, 128))]
     algo = SimpleNamespace(train=iter(results).__next__)
     lines = []
-    stats = tr.train(algo, timesteps=100, log=lines.append)
+    stats = rt.train(algo, timesteps=100, log=lines.append)
     assert stats["iterations"] == 3 and stats["timesteps"] == 128
     assert "env steps        0" in lines[0] and "no env runner returned samples" in lines[0]
     assert "no env runner" not in lines[1] + lines[2]
@@ -171,7 +174,7 @@ def test_algorithm_restores(run):
 
     checkpoint = load_run(run[0])[0]
     trained = RLlibPolicy(checkpoint).module.state_dict()
-    tr.start_ray(None, 2, ship_code=False)
+    rt.start_ray(None, 2, ship_code=False)
     try:
         algo = Algorithm.from_checkpoint(checkpoint)
         assert algo.iteration == 2
@@ -216,7 +219,7 @@ def test_evaluation_set_up_follows_the_env_id(tmp_path):
 
     (tmp_path / "checkpoint").mkdir()
     (tmp_path / "checkpoint" / "rllib_checkpoint.json").write_text("{}")
-    entry = tr.get_entry(tr.load_config(CONFIG), "FrictionlessGraspRandomShapes-v0")
+    entry = rc.get_entry(load_config(CONFIG), "FrictionlessGraspRandomShapes-v0")
     (tmp_path / "config.yml").write_text(
         yaml.safe_dump({"FrictionlessGraspRandomShapes-v0": entry})
     )
