@@ -66,7 +66,7 @@ class PolicySpec:
     """A policy to evaluate: ``kind`` is "scripted", "random", "ppo" (with ``model_dir``) or
     "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``); ``wrapper``:
     the wrapper class and arguments of a model that plays beside the planner
-    (``agents.planner_agents.planner_wrapper``); ``test_time``: what the policy calls at test
+    (``agents.planner_base.planner_wrapper``); ``test_time``: what the policy calls at test
     time (``agents.models.TEST_TIMES``; by default its kind's, ``KIND_TEST_TIMES``, and for
     a "ppo" model its wrapper's declaration, ``PlannerAgent.test_time_of``, or ``"network"``
     without one: as ``agents.models.entry_test_time`` reads its entry)."""
@@ -96,7 +96,7 @@ def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
     """The spec of a trained model directory: its training env set-up (palm control, start,
     the wrapper that plays it beside the planner) from its saved config, with the env's
     default reward weights like every other policy."""
-    from agents.planner_agents import planner_wrapper
+    from agents.planner_base import planner_wrapper
 
     _, _, name, entry = load_agent(model_dir)
     kwargs = {

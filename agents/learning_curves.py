@@ -41,7 +41,7 @@ import yaml
 
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.models import load_checkpoint, read_model_dir
-from agents.planner_agents import planner_wrapper
+from agents.planner_base import planner_wrapper
 from grasp_env.cli import HelpFormatter, positive_int
 
 #: First seed of the validation episodes: apart from training (small seeds) and from the

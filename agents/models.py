@@ -49,7 +49,7 @@ def entry_test_time(entry: dict[str, Any]) -> str:
     the agent its ``env_wrapper`` names declares (``PlannerAgent.test_time_of``), where it
     names one that plays beside the planner; else ``"network"`` (the other wrappers shape
     the reward or thin the info for training only, and no policy plays through them)."""
-    from agents.planner_agents import planner_wrapper
+    from agents.planner_base import planner_wrapper
 
     wrapper = planner_wrapper(entry)
     return "network" if wrapper is None else wrapper[0].test_time_of(wrapper[1])

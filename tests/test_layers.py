@@ -40,7 +40,7 @@ LAYERS = {
             "provenance",
         ),
         ("callbacks", "scripted", "rllib_policy", "rllib_config", "rllib_training"),
-        ("planner_agents",),
+        ("planner_base", "planner_agents"),
         ("models",),
         ("episodes", "summary", "expert", "cloning", "imitation_page"),
         ("train_ppo", "train_rllib", "evaluate", "learning_curves", "imitation"),

@@ -21,7 +21,8 @@ from agents import episodes as ep
 from agents import evaluate as ev
 from agents import models, provenance
 from agents import summary as sm
-from agents.planner_agents import PlannerAgent, PlannerGrip, PlannerHandover, PlannerResidual
+from agents.planner_agents import PlannerGrip, PlannerHandover, PlannerResidual
+from agents.planner_base import PlannerAgent
 
 REPO = Path(__file__).resolve().parents[2]
 

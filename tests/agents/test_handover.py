@@ -20,7 +20,8 @@ import grasp_env  # noqa: F401  (registers the env ids)
 from agents import train_ppo
 from agents.episodes import LIFT_KWARGS, PolicySpec, make_env
 from agents.models import shipped_name
-from agents.planner_agents import PlannerHandover, planner_wrapper
+from agents.planner_agents import PlannerHandover
+from agents.planner_base import planner_wrapper
 from agents.scripted import ScriptedPolicy
 
 ROOT = Path(__file__).resolve().parents[2]

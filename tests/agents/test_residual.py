@@ -19,7 +19,8 @@ import grasp_env  # noqa: F401  (registers the env ids)
 from agents import train_ppo
 from agents.episodes import LIFT_KWARGS, PolicySpec, make_env
 from agents.models import shipped_name
-from agents.planner_agents import PlannerGrip, PlannerResidual, planner_wrapper
+from agents.planner_agents import PlannerGrip, PlannerResidual
+from agents.planner_base import planner_wrapper
 from agents.scripted import ScriptedPolicy
 from grasp_env.errors import WorkLimitError
 from grasp_env.mechanics.closure import grip_objective, is_form_closure
