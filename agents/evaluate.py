@@ -127,16 +127,6 @@ def _one_thread() -> None:
 MAX_WORKERS = 4 * (os.cpu_count() or 1)
 
 
-class _HelpFormatter(HelpFormatter):
-    """``--help`` with every option's default, zero counts included (the shared formatter
-    leaves out defaults that compare equal to False)."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        if type(action.default) is int and "%(default)" not in (action.help or ""):
-            return f"{action.help} (default: %(default)s)"
-        return super()._get_help_string(action)
-
-
 def results_page_problem(path: Path) -> str | None:
     """Why the results page cannot be written at ``path``, or None: checked before any
     episode runs."""
@@ -158,7 +148,7 @@ def main(argv: list[str] | None = None) -> None:
         "summary.png and one GIF per policy into --out, and with --results-page the results "
         "page; each row's test_time says what its policy calls at test time (network, "
         "planner or simulator); docs/training.md explains the metrics.",
-        formatter_class=_HelpFormatter,
+        formatter_class=HelpFormatter,
     )
     parser.add_argument(
         "--models",
