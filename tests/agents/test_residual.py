@@ -15,6 +15,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+pytest.importorskip("rl_zoo3")  # the train extra
+
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents import train_ppo
 from agents.episodes import LIFT_KWARGS, PolicySpec, make_env
