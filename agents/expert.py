@@ -108,13 +108,8 @@ def expert_episode(job: tuple[str, int, int]) -> dict[str, Any]:
                 break
     except ComputationError as exc:
         error = f"{type(exc).__name__}: {exc}"
-    space, width = env.action_space, env.observation_space.shape[0]
-    env.close()
-    acts = np.array(actions, np.float32).reshape(-1, space.shape[0])
-    check_actions(acts, space)
     return {
-        "obs": np.array(observations, np.float32).reshape(len(actions), width),
-        "act": acts,
+        **_samples(env, observations, actions),
         "success": success,
         "steps": len(actions),
         "seed": seed,
@@ -122,6 +117,16 @@ def expert_episode(job: tuple[str, int, int]) -> dict[str, Any]:
         "error": error,
         "seconds": time.process_time() - t0,
     }
+
+
+def _samples(env, observations: list, actions: list) -> dict[str, np.ndarray]:
+    """An episode's (observation, action) pairs as float32 arrays, the actions checked in the
+    env's action space; closes the env."""
+    space, width = env.action_space, env.observation_space.shape[0]
+    env.close()
+    acts = np.array(actions, np.float32).reshape(-1, space.shape[0])
+    check_actions(acts, space)
+    return {"obs": np.array(observations, np.float32).reshape(len(actions), width), "act": acts}
 
 
 # ---------------------------------------------------------------------- DAgger
@@ -163,13 +168,8 @@ def dagger_episode(job: tuple[str, str, int, int, int]) -> dict[str, Any]:
         steps += 1
         if terminated or truncated:
             break
-    space, width = env.action_space, env.observation_space.shape[0]
-    env.close()
-    acts = np.array(actions, np.float32).reshape(-1, space.shape[0])
-    check_actions(acts, space)
     return {
-        "obs": np.array(observations, np.float32).reshape(len(actions), width),
-        "act": acts,
+        **_samples(env, observations, actions),
         "success": bool(info["is_success"]),
         "steps": steps,
         "seed": seed,
