@@ -82,20 +82,10 @@ def polygon_of(family: str, rng: np.random.Generator) -> tuple[np.ndarray, dict[
 def scaled_fig13(k: float) -> dict[str, Any]:
     """fig13 with every length times ``k`` (densities kept, torque limits times ``k**3``)."""
     import grasp_env
+    from grasp_env.core.scene_loading import scaled_scene_dict
     from grasp_env.envs.shapes import scene_to_dict
 
-    d = scene_to_dict(grasp_env.load_scene("fig13"))
-    palm = d["palm"]
-    palm["width"] *= k
-    palm["thickness"] *= k
-    palm["pose"] = [palm["pose"][0] * k, palm["pose"][1] * k, palm["pose"][2]]
-    for f in d["fingers"]:
-        f["length"] *= k
-        f["thickness"] *= k
-        f["torque_limits"] = [t * k**3 for t in f["torque_limits"]]
-    d["object"]["vertices"] = [[x * k, y * k] for x, y in d["object"]["vertices"]]
-    d["object"]["mass"] *= k**2
-    return d
+    return scaled_scene_dict(scene_to_dict(grasp_env.load_scene("fig13")), k)
 
 
 def make_env(family: str, rng: np.random.Generator):

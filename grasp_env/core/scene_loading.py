@@ -9,6 +9,7 @@ checks of the fields in :mod:`grasp_env.core.scene_validation`.
 
 from __future__ import annotations
 
+import copy
 import importlib.resources
 import os
 import re
@@ -30,6 +31,7 @@ __all__ = [
     "bundled_scenes",
     "convex_polygon",
     "load_scene",
+    "scaled_scene_dict",
     "scene_from_dict",
 ]
 
@@ -173,3 +175,22 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
     except SceneError as exc:  # a duplicate key
         raise SceneError(f"scene file {str(path)!r}: {exc}") from None
     return scene_from_dict(data, source=str(path))
+
+
+def scaled_scene_dict(spec: dict[str, Any], k: float) -> dict[str, Any]:
+    """A copy of the scene dict ``spec`` with every length times ``k``: the same scene at palm
+    width ``k`` times its own. Densities are kept, so a given ``object.mass`` scales by
+    ``k**2``, and torque limits (force times length) by ``k**3``."""
+    d = copy.deepcopy(spec)
+    palm = d["palm"]
+    palm["width"] *= k
+    palm["thickness"] *= k
+    palm["pose"] = [palm["pose"][0] * k, palm["pose"][1] * k, palm["pose"][2]]
+    for f in d["fingers"]:
+        f["length"] *= k
+        f["thickness"] *= k
+        f["torque_limits"] = [t * k**3 for t in f["torque_limits"]]
+    d["object"]["vertices"] = [[x * k, y * k] for x, y in d["object"]["vertices"]]
+    if "mass" in d["object"]:
+        d["object"]["mass"] *= k**2
+    return d

@@ -7,7 +7,6 @@ k^2; torque limits by k^3, force times length), over the accepted palm widths.
 
 from __future__ import annotations
 
-import copy
 import math
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import pytest
 import yaml
 
 import grasp_env
+from grasp_env.core.scene_loading import scaled_scene_dict
 from grasp_env.envs import ENV_KWARGS
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, random_shape_scene
 
@@ -40,18 +40,7 @@ POSE_ATOL = 1e-5
 def fig13(k: float) -> dict:
     """fig13 as a dict with every length times ``k`` (densities kept: masses scale by k^2;
     torque limits by k^3)."""
-    d = yaml.safe_load((SCENES_DIR / "fig13.yaml").read_text())
-    d = copy.deepcopy(d)
-    p = d["palm"]
-    p["width"] *= k
-    p["thickness"] *= k
-    p["pose"] = [p["pose"][0] * k, p["pose"][1] * k, p["pose"][2]]
-    for f in d["fingers"]:
-        f["length"] *= k
-        f["thickness"] *= k
-        f["torque_limits"] = [t * k**3 for t in f["torque_limits"]]
-    d["object"]["vertices"] = [[x * k, y * k] for x, y in d["object"]["vertices"]]
-    return d
+    return scaled_scene_dict(yaml.safe_load((SCENES_DIR / "fig13.yaml").read_text()), k)
 
 
 def size_in_palm_widths(scene: grasp_env.Scene) -> float:
