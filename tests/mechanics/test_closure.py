@@ -231,6 +231,15 @@ def contact_sets(draw, min_contacts: int = 1, max_contacts: int = 7):
 
 
 @st.composite
+def contact_states(draw, theta: float, max_contacts: int):
+    """(state of the object at its centroid turned by ``theta`` with a random contact set,
+    points, inward normals, centroid, the contacts' wrench columns about the centroid)."""
+    _, com, p, n, bodies = draw(contact_sets(max_contacts=max_contacts))
+    state = make_state([*com, theta], SCENE.initial_hand, p, n, bodies)
+    return state, p, n, com, wrench_columns(p, n, com)
+
+
+@st.composite
 def xi_vectors(draw, m: int) -> np.ndarray:
     finite = st.floats(-1.0, 1.0, allow_subnormal=False)
     kind = draw(st.sampled_from(["mixed", "zero", "squeeze"]))
@@ -423,11 +432,9 @@ def positively_spans_lp(W: np.ndarray) -> bool:
 
 
 @HYP
-@given(cs=contact_sets(max_contacts=8))
-def test_form_closure_is_positive_spanning(cs):
-    _, com, p, n, bodies = cs
-    state = make_state([*com, 0.3], SCENE.initial_hand, p, n, bodies)
-    W = wrench_columns(p, n, com)
+@given(case=contact_states(0.3, max_contacts=8))
+def test_form_closure_is_positive_spanning(case):
+    state, p, n, com, W = case
     depth = hull_depth(W)
     if depth is not None:
         assume(abs(depth) > 1e-6)  # too close to call
@@ -446,11 +453,9 @@ def test_form_closure_is_positive_spanning(cs):
 
 
 @HYP
-@given(cs=contact_sets(max_contacts=6))
-def test_force_closure_matches_nnls(cs):
-    _, com, p, n, bodies = cs
-    state = make_state([*com, 0.0], SCENE.initial_hand, p, n, bodies)
-    W = wrench_columns(p, n, com)
+@given(case=contact_states(0.0, max_contacts=6))
+def test_force_closure_matches_nnls(case):
+    state, _, _, _, W = case
     weight = SCENE.object_weight
     resid = float(nnls(W, np.array([0.0, weight, 0.0]))[1])
     assume(resid < 1e-12 * weight or resid > 1e-6 * weight)
