@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from polygon_strategies import random_hulls
 from scipy.optimize import linprog
-from scipy.spatial import ConvexHull, QhullError
 
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene_loading import scene_from_dict
@@ -72,15 +72,7 @@ def well_conditioned(v: np.ndarray) -> bool:
 @st.composite
 def resting_polygons(draw) -> np.ndarray:
     """Random convex polygons (hulls of random points) resting on one of their stable edges."""
-    n = draw(st.integers(3, 10))
-    seed = draw(st.integers(0, 2**32 - 1))
-    aspect = draw(st.floats(0.25, 4.0))
-    rng = np.random.default_rng(seed)
-    pts = rng.uniform(-1.0, 1.0, size=(n, 2)) * np.array([aspect, 1.0])
-    try:
-        v = pts[ConvexHull(pts).vertices]
-    except QhullError:
-        assume(False)
+    v = draw(random_hulls(10, (0.25, 4.0), lambda rng, n, a: rng.uniform(-1, 1, (n, 2)) * [a, 1]))
     assume(well_conditioned(v))
     stable = [k for k in range(len(v)) if is_stable_on(v, k)]
     assume(stable)
@@ -341,30 +333,21 @@ SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 @pytest.mark.parametrize(
     ("point", "normal", "expected"),
     [
-        ([0.0, 0.5], [1.0, 0.0], True),
-        ([0.0, 0.5], [2.0, 0.0], True),  # normalised
-        ([0.0, 0.5], [1.0, 1e-6], False),  # not the edge's normal
-        ([-0.1, 0.5], [1.0, 0.0], False),  # off the perimeter
-        ([0.5, 0.0], [0.0, 1.0], False),  # supporting edge
-        ([0.0, 0.0], [1.0, 0.0], False),  # left support vertex
-        ([0.0, 1e-4], [1.0, 0.0], True),  # low on the side: line 1e-4 above R
-        ([0.0, 1.0], [1.0, 0.0], True),  # top-left corner, flush with the side
-        ([0.0, 1.0], [math.cos(-0.5), math.sin(-0.5)], True),
-        ([0.0, 1.0], [math.cos(-0.8), math.sin(-0.8)], False),  # below the ray to R
-        ([0.0, 1.0 + 1e-12], [1.0, 0.0], True),  # within tol of the corner
-    ],
-    ids=[
-        "side",
-        "unnormalised",
-        "wrong-normal",
-        "off-perimeter",
-        "supporting-edge",
-        "support-vertex",
-        "low-on-side",
-        "corner-flush",
-        "corner-inside",
-        "corner-outside",
-        "corner-within-tol",
+        pytest.param([0.0, 0.5], [1.0, 0.0], True, id="side"),
+        pytest.param([0.0, 0.5], [2.0, 0.0], True, id="unnormalised"),  # normalised
+        pytest.param([0.0, 0.5], [1.0, 1e-6], False, id="wrong-normal"),  # not the edge's normal
+        pytest.param([-0.1, 0.5], [1.0, 0.0], False, id="off-perimeter"),
+        pytest.param([0.5, 0.0], [0.0, 1.0], False, id="supporting-edge"),
+        pytest.param([0.0, 0.0], [1.0, 0.0], False, id="support-vertex"),  # the left one
+        # low on the side: line 1e-4 above R
+        pytest.param([0.0, 1e-4], [1.0, 0.0], True, id="low-on-side"),
+        # top-left corner, flush with the side
+        pytest.param([0.0, 1.0], [1.0, 0.0], True, id="corner-flush"),
+        pytest.param([0.0, 1.0], [math.cos(-0.5), math.sin(-0.5)], True, id="corner-inside"),
+        # below the ray to R
+        pytest.param([0.0, 1.0], [math.cos(-0.8), math.sin(-0.8)], False, id="corner-outside"),
+        # within tol of the corner
+        pytest.param([0.0, 1.0 + 1e-12], [1.0, 0.0], True, id="corner-within-tol"),
     ],
 )
 def test_contains_cases(point, normal, expected: bool) -> None:
@@ -381,24 +364,29 @@ def test_contains_rejects_zero_normal() -> None:
 @pytest.mark.parametrize(
     ("point", "normal", "pattern"),
     [
-        (None, None, r"point_W must be 2 real numbers, got None"),
-        ([1.0], [-1.0, 0.0], r"point_W must be 2 real numbers, got \[1\.0\]"),
-        ([1.0, 0.5, 0.0], [-1.0, 0.0], r"point_W must be 2 real numbers"),
-        (np.array([1.0, math.nan]), [-1.0, 0.0], r"point_W must be finite"),
-        ([1.0, 0.5], ["-1", "0"], r"normal_W must be real numbers"),
-        ([1.0, 0.5], np.array([True, False]), r"normal_W must be real numbers"),
-        (np.array([1.0, 0.5]), np.zeros(3), r"normal_W must be 2 real numbers"),
-        (np.ma.array([1.0, 0.5], mask=[False, True]), [-1.0, 0.0], r"point_W .* masked"),
-    ],
-    ids=[
-        "none",
-        "short-point",
-        "long-point",
-        "nan-point",
-        "str-normal",
-        "bool-normal",
-        "long-normal",
-        "masked-point",
+        pytest.param(None, None, r"point_W must be 2 real numbers, got None", id="none"),
+        pytest.param(
+            [1.0], [-1.0, 0.0], r"point_W must be 2 real numbers, got \[1\.0\]", id="short-point"
+        ),
+        pytest.param(
+            [1.0, 0.5, 0.0], [-1.0, 0.0], r"point_W must be 2 real numbers", id="long-point"
+        ),
+        pytest.param(
+            np.array([1.0, math.nan]), [-1.0, 0.0], r"point_W must be finite", id="nan-point"
+        ),
+        pytest.param([1.0, 0.5], ["-1", "0"], r"normal_W must be real numbers", id="str-normal"),
+        pytest.param(
+            [1.0, 0.5], np.array([True, False]), r"normal_W must be real numbers", id="bool-normal"
+        ),
+        pytest.param(
+            np.array([1.0, 0.5]), np.zeros(3), r"normal_W must be 2 real numbers", id="long-normal"
+        ),
+        pytest.param(
+            np.ma.array([1.0, 0.5], mask=[False, True]),
+            [-1.0, 0.0],
+            r"point_W .* masked",
+            id="masked-point",
+        ),
     ],
 )
 def test_contains_refuses_malformed_point_or_normal(point, normal, pattern: str) -> None:

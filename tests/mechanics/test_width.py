@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from polygon_strategies import random_hulls
 from scipy.optimize import minimize_scalar
-from scipy.spatial import ConvexHull, QhullError
 
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene_loading import scene_from_dict
@@ -122,15 +122,7 @@ def test_bad_input_raises(bad, pattern: str) -> None:
 
 @st.composite
 def convex_polygons(draw) -> np.ndarray:
-    n = draw(st.integers(3, 20))
-    seed = draw(st.integers(0, 2**32 - 1))
-    aspect = draw(st.floats(0.05, 1.0))
-    rng = np.random.default_rng(seed)
-    pts = rng.normal(size=(n, 2)) * np.array([1.0, aspect])
-    try:
-        v = pts[ConvexHull(pts).vertices]
-    except QhullError:
-        assume(False)
+    v = draw(random_hulls(20, (0.05, 1.0), lambda rng, n, a: rng.normal(size=(n, 2)) * [1.0, a]))
     assume(len(v) >= 3 and geo.is_convex_ccw(v, tol=1e-9))
     return v
 
