@@ -1,18 +1,20 @@
 """How often the scripted planner lifts random convex shapes, why it fails where it does, and
 what a plan costs.
 
-Two suites of the env's shape randomizer on the fig13 hand: ``heldout`` (the env's default
-ranges) and ``wide`` (``WIDE_SHAPE_RANGES``: 3-12 vertices, aspect to 1:5). Shape ``k`` of a
-suite is the env's shape for ``reset(seed=HELDOUT_SEED + k)``, the held-out shapes of
-``agents.evaluate``. For each shape: whether it is tippable (the paper's criterion: a
-tippability region is non-empty; without one no frictionless grasp can lift it), the whole
-plan (:func:`grasp_env.planning.plan_grasp`), its outcome re-checked on the final state, and
-its CPU time. ``--env`` adds the scripted policy (``agents.scripted.ScriptedPolicy``) through
-the env on the same shapes, as ``agents.evaluate`` runs it.
+Three suites of random shapes on the fig13 hand. ``heldout`` (the env's default ranges) and
+``wide`` (``WIDE_SHAPE_RANGES``: 3-12 vertices, aspect to 1:5): shape ``k`` is the env's
+shape for ``reset(seed=HELDOUT_SEED + k)``, the held-out shapes of ``agents.evaluate``.
+``small`` samples where the planner fails: polygons of 3-5 vertices, 0.15-0.6 palm widths
+wide, low or high (:data:`SMALL_BANDS`), 0.08-0.55 high, drawn by the env's randomizer from
+``SMALL_SEED + k``, seeds no test or training uses. For each shape: whether it is tippable
+(the paper's criterion: a tippability region is non-empty; without one no frictionless grasp
+can lift it), the whole plan (:func:`grasp_env.planning.plan_grasp`), its outcome re-checked
+on the final state, and its CPU time. ``--env`` adds the scripted policy
+(``agents.scripted.ScriptedPolicy``) through the env on the env's suites' shapes, as
+``agents.evaluate`` runs it.
 
-Usage: ``python -m benchmarks.planner_shapes [--shapes N] [--suites heldout wide] [--env]
-[--timeout T] [--workers W] [--out FILE]`` from the repository root (200 shapes a suite on
-two workers: about 10 minutes, 20 more with ``--env``).
+Usage: ``python -m benchmarks.planner_shapes [--shapes N] [--suites heldout wide small]
+[--env] [--timeout T] [--workers W] [--out FILE]`` from the repository root.
 """
 
 from __future__ import annotations
@@ -25,11 +27,59 @@ from pathlib import Path
 
 from benchmarks.common import BudgetExceeded, headless, parser, table, time_limit, write
 
-SUITES = ("heldout", "wide")
+SUITES = ("heldout", "wide", "small")
+#: The suites whose shapes are the env's (``agents.episodes.SHAPE_SUITES``), which ``--env``
+#: runs the scripted policy on.
+ENV_SUITES = ("heldout", "wide")
+
+#: First seed of the ``small`` suite, apart from the env's held-out seeds and from training's.
+SMALL_SEED = 2_000_000
+#: Width bands of the ``small`` suite (palm widths), crossed with its profiles.
+SMALL_WIDTHS = ((0.15, 0.3), (0.3, 0.45), (0.45, 0.6))
+#: Profiles of the ``small`` suite: height over width.
+SMALL_PROFILES = {"low": (0.15, 0.6), "high": (0.6, 1.5)}
+#: The ``small`` suite's bands in the order its shapes cycle through them: shape ``k`` is in
+#: band ``k % len(SMALL_BANDS)``.
+SMALL_BANDS = tuple((width, profile) for width in SMALL_WIDTHS for profile in SMALL_PROFILES)
+#: Heights of the ``small`` suite's shapes (palm widths).
+SMALL_HEIGHT = (0.08, 0.55)
+
+
+def band_name(band: tuple[tuple[float, float], str]) -> str:
+    (lo, hi), profile = band
+    return f"{lo:g}-{hi:g} w, {profile}"
+
+
+def small_scene(k: int):
+    """Shape ``k`` of the ``small`` suite: the env's randomizer (3-5 vertices, fig13's hand
+    set-up) seeded with ``SMALL_SEED + k``, its draws kept only in shape ``k``'s band."""
+    import numpy as np
+
+    import grasp_env
+    from grasp_env.envs.shapes import random_shape_scene
+
+    (w_lo, w_hi), profile = SMALL_BANDS[k % len(SMALL_BANDS)]
+    r_lo, r_hi = SMALL_PROFILES[profile]
+
+    def outside(scene) -> str | None:
+        width, height = np.ptp(scene.object.vertices_W0, axis=0)
+        if not (w_lo <= width < w_hi and r_lo <= height / width < r_hi):
+            return "outside the band"
+        if not SMALL_HEIGHT[0] <= height <= SMALL_HEIGHT[1]:
+            return "outside the heights"
+        return None
+
+    # A polygon's diameter is at least its width and at most its width times sqrt(1 + r^2).
+    ranges = {"vertices": (3, 5), "size": (w_lo, w_hi * float(np.hypot(1.0, r_hi)))}
+    rng = np.random.default_rng(SMALL_SEED + k)
+    return random_shape_scene(rng, grasp_env.load_scene("fig13"), ranges, outside)
 
 
 def suite_scene(suite: str, k: int):
-    """Shape ``k`` of ``suite``: the scene of the env's ``reset(seed=HELDOUT_SEED + k)``."""
+    """Shape ``k`` of ``suite``: for an env suite the scene of the env's
+    ``reset(seed=HELDOUT_SEED + k)``, for ``small`` :func:`small_scene`."""
+    if suite == "small":
+        return small_scene(k)
     import gymnasium as gym
 
     from agents.episodes import HELDOUT_SEED, SHAPE_SUITES
@@ -55,6 +105,7 @@ def plan_one(suite: str, k: int, timeout: float) -> dict:
         "suite": suite,
         "k": k,
         "vertices": len(scene.object.vertices_B),
+        "band": band_name(SMALL_BANDS[k % len(SMALL_BANDS)]) if suite == "small" else "",
         "tippable": not (left.is_empty and right.is_empty),
     }
     try:
@@ -134,12 +185,28 @@ def _by_suite(records: list[dict]) -> Iterator[tuple[str, list[dict]]]:
             yield suite, mine
 
 
+def _groups(plans: list[dict]) -> Iterator[tuple[str, str, tuple[int, int]]]:
+    """Per suite, each vertex count (and in ``small`` each band) with its tippable shapes
+    lifted and tippable shapes."""
+    for suite, mine in _by_suite(plans):
+        tippable = [r for r in mine if r["tippable"]]
+        keys = [(f"{n} vertices", "vertices", n) for n in sorted({r["vertices"] for r in mine})]
+        if suite == "small":
+            keys += [(band_name(b), "band", band_name(b)) for b in SMALL_BANDS]
+        for name, field, value in keys:
+            group = [r for r in tippable if r[field] == value]
+            yield suite, name, (sum(_lifted(r) for r in group), len(group))
+
+
 def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]:
     """The page's body: per suite, the outcome counts, failure reasons and CPU times, then the
     scripted policy through the env, then every failure."""
     body = [
         "Shapes: the env's held-out random shapes (`reset(seed=1_000_000 + k)`) on the fig13 "
-        f"hand; `heldout` in the default ranges, `wide` in `WIDE_SHAPE_RANGES`. Wall limit "
+        "hand; `heldout` in the default ranges, `wide` in `WIDE_SHAPE_RANGES`; `small`: 3-5 "
+        "vertices, 0.15-0.6 palm widths w wide and 0.08-0.55 w high, low (height 0.15-0.6 "
+        "of the width) or high (0.6-1.5), cycling through the bands (seeds 2_000_000 + k). "
+        "Wall limit "
         f"{timeout:g} s a plan. `lifted`: the final state re-checked to be in form closure "
         "with the object off the support. Tippable: a non-empty tippability region (the "
         "paper's criterion; an object without one cannot be lifted without friction).",
@@ -176,6 +243,12 @@ def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]
         rows,
         align="lrrrrrrr",
     )
+    body += ["", "Tippable shapes lifted by vertex count (and, in `small`, by band):", ""]
+    body += table(
+        ["suite", "group", "tippable lifted"],
+        [[suite, group, _wilson(*counts)] for suite, group, counts in _groups(plans)],
+        align="lll",
+    )
     fails = [r for r in plans if r["tippable"] and not _lifted(r)]
     reasons = Counter((r["suite"], _reason(r)) for r in fails)
     if reasons:
@@ -189,7 +262,7 @@ def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]
         body += [
             "",
             "The scripted policy through the env on the same shapes (its success: form "
-            "closure off the support at the episode's last step):",
+            "closure off the support at the episode's last step; the env's suites only):",
             "",
         ]
         env_rows = []
@@ -228,8 +301,9 @@ def run(
 ) -> Path:
     """Plan ``shapes`` shapes of each suite (and run the scripted policy on them with
     ``env``), ``workers`` processes at a time; write the page."""
-    kinds = ("plan", "env") if env else ("plan",)
-    jobs = [(kind, s, k, timeout) for kind in kinds for s in suites for k in range(shapes)]
+    jobs = [("plan", s, k, timeout) for s in suites for k in range(shapes)]
+    if env:
+        jobs += [("env", s, k, timeout) for s in suites if s in ENV_SUITES for k in range(shapes)]
     with ProcessPoolExecutor(workers, initializer=headless) as pool:
         results = list(pool.map(_job, jobs, chunksize=1))
     plans, episodes = results[: len(suites) * shapes], results[len(suites) * shapes :]
