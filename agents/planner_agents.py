@@ -151,7 +151,8 @@ class PlannerGrip(PlannerResidual):
     step did (6 floats) and with ``probe_turns`` what a turn would do (2 floats; both below).
 
     Args:
-        env, scale, redraw, correction_cost: as for :class:`PlannerResidual`.
+        env, scale, redraw, correction_cost: as for :class:`PlannerResidual` (keywords after
+            ``env``).
         palm_only: the correction moves the palm only (three actions: ``dx``, ``dy``,
             ``dtheta``); the fingers follow the planner. Held in form closure with the
             fingers still, the object moves with the hand as one body (e.g. the palm turns
@@ -183,15 +184,14 @@ class PlannerGrip(PlannerResidual):
     def __init__(
         self,
         env: gym.Env,
-        scale: float = 0.25,
-        redraw: bool = False,
-        correction_cost: float = 0.0,
+        *,
         palm_only: bool = False,
         last_step: bool = False,
         grip_shaping: float = 0.0,
         probe_turns: bool = False,
+        **residual: Any,
     ) -> None:
-        super().__init__(env, scale, redraw, correction_cost)
+        super().__init__(env, **residual)
         self.grip_shaping = _cost(grip_shaping, "grip_shaping")
         self.palm_only = bool(palm_only)
         self.last_step = bool(last_step)
