@@ -3,11 +3,6 @@ cells, the results page and the command's options (no episode of a real policy r
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-
 import csv
 import math
 from pathlib import Path

@@ -3,11 +3,6 @@ where it gets stuck."""
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-
 import subprocess
 import sys
 from pathlib import Path

@@ -3,11 +3,6 @@ behaviour cloning, the saved network-only model, the command's argument checks."
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-
 import pickle
 
 import numpy as np

@@ -3,11 +3,6 @@ adjustment's record and plot (like the paper's Fig. 14)."""
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-
 import math
 
 import numpy as np

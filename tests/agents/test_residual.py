@@ -4,11 +4,6 @@ planner's actions."""
 from __future__ import annotations
 
 import math
-import os
-
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-
 from pathlib import Path
 
 import gymnasium as gym

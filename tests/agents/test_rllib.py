@@ -3,11 +3,6 @@ local Ray instance whose checkpoint is loaded again and acts. Needs ray[rllib]."
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-
 import contextlib
 import io
 import json
