@@ -13,7 +13,6 @@ types), step_times (the step-time tail on adversarial shapes), ppo (PPO training
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -32,8 +31,8 @@ from benchmarks import (
     work_precision,
 )
 from benchmarks.blas_variation import CORE_TYPES
-from benchmarks.common import OUT, headless
-from grasp_env.cli import HelpFormatter, out_dir_problem
+from benchmarks.common import OUT, headless, parser
+from grasp_env.cli import out_dir_problem
 
 SUITE = {
     "throughput": lambda quick, out: throughput.run(quick, out / "throughput.md"),
@@ -60,12 +59,7 @@ QUICK_CORE_TYPES = CORE_TYPES[:2]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="python -m benchmarks",
-        description=__doc__.splitlines()[0].replace("``", ""),
-        formatter_class=HelpFormatter,
-    )
-    ap.add_argument("--quick", action="store_true", help="small budgets (about a minute)")
+    ap = parser("benchmarks", __doc__, quick="small budgets (about a minute)")
     ap.add_argument(
         "--only",
         nargs="+",
