@@ -2,7 +2,8 @@
 
 The public API (docs/conventions.md, "Public API"): :func:`load_scene`, :class:`Simulator`,
 the analysis functions (:func:`is_form_closure`, :func:`is_force_closure`,
-:func:`grip_objective`, :func:`tippability_regions`, :func:`object_width`) and the Gymnasium
+:func:`grip_objective`, :func:`tippability_regions`, :func:`object_width`,
+:func:`critical_friction`, :func:`jams_with_friction`) and the Gymnasium
 environment ``FrictionlessGrasp-v0``.
 """
 
@@ -17,6 +18,7 @@ from grasp_env.mechanics.closure import (
     is_force_closure,
     is_form_closure,
 )
+from grasp_env.mechanics.friction import critical_friction, jams_with_friction
 from grasp_env.mechanics.tippability import tippability_regions
 from grasp_env.mechanics.width import object_width
 from grasp_env.simulator import SimulationError, Simulator
@@ -32,10 +34,12 @@ __all__ = [
     "SolverError",
     "State",
     "bundled_scenes",
+    "critical_friction",
     "escape_direction",
     "grip_objective",
     "is_force_closure",
     "is_form_closure",
+    "jams_with_friction",
     "load_scene",
     "object_width",
     "tippability_regions",

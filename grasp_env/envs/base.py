@@ -7,6 +7,7 @@ adds its documentation, observation, reward, episode end, starts, resets and ste
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -17,7 +18,7 @@ from grasp_env.arguments import integer, real_vector
 from grasp_env.core.scene import Scene
 from grasp_env.core.state import State
 from grasp_env.envs.checks import action_values, one_of
-from grasp_env.envs.episode import Episode, episode_constants
+from grasp_env.envs.episode import Episode, episode_constants, state_arrays
 from grasp_env.kernel import step as kernel
 from grasp_env.render import Renderer
 from grasp_env.simulator import Simulator, own_state
@@ -46,6 +47,8 @@ class GraspEnvBase(gym.Env):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
     max_finger_step: float
     max_palm_step: np.ndarray
+    #: Coulomb friction at every contact that stops a step it can jam (0: none).
+    friction: float = 0.0
     _settings: np.ndarray
     _obs_low: np.ndarray
     _obs_high: np.ndarray
@@ -119,7 +122,8 @@ class GraspEnvBase(gym.Env):
                 into [-1, 1].
 
         Returns:
-            The new state (the env's own state is unchanged).
+            The new state (the env's own state is unchanged); with ``friction``, a step it
+            jams returns ``state`` marked ``jammed``, with no events.
 
         Raises:
             ValueError: a bad action (as :meth:`step`).
@@ -135,6 +139,10 @@ class GraspEnvBase(gym.Env):
         sim = self._episode.sim
         own_state(state, sim.scene)
         real_vector(state.hand, "state.hand", 5)  # the move's target is made from it
+        if self.friction > 0.0 and self._episode.friction_jams(
+            state_arrays(state), np.array(a), self._settings, self.friction
+        ):
+            return replace(state, jammed=True, hand_blocked=False, events=())
         return self._episode.simulate(state, np.array(a), self._settings)
 
     # ------------------------------------------------------------------ rendering

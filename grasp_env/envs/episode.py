@@ -21,6 +21,7 @@ from grasp_env.kernel.observation import (
     hand_block_at,
 )
 from grasp_env.mechanics.closure import reference_grip
+from grasp_env.mechanics.friction import contact_edge_rows, jams_on_rows
 from grasp_env.sim import move
 from grasp_env.simulator import Simulator
 
@@ -160,6 +161,17 @@ class Episode:
             )  # fmt: skip
         self.q, self.h, self.keys, self.rows, self.state = q, h, keys, rows, new
         return seen, info
+
+    def friction_jams(self, arrays: tuple, action: np.ndarray, settings, mu: float) -> bool:
+        """Whether friction ``mu`` at every contact jams the hand motion ``action`` asks for
+        from the state ``(q, h, keys, rows)`` (:func:`grasp_env.mechanics.friction.
+        jams_with_friction`)."""
+        q, h, keys, rows = arrays
+        target, _, _ = kernel.target_of(self.consts, settings, h, action)
+        edges = contact_edge_rows(
+            self.sim.scene, q, h, rows[:, 0:2], rows[:, 2:4], keys[:, 0], target - h
+        )
+        return jams_on_rows(edges, mu)
 
     def simulate(self, state: State, action: np.ndarray, settings: np.ndarray) -> State:
         """The state ``action`` leads to from ``state`` (of this episode's scene), as

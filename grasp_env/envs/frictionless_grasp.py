@@ -39,6 +39,7 @@ from grasp_env.envs.shapes import hand_setup, random_shape_scene
 from grasp_env.errors import ComputationError
 from grasp_env.kernel import step as kernel
 from grasp_env.kernel.observation import observation_bounds
+from grasp_env.mechanics.friction import MU_MAX
 from grasp_env.planning import centred_placement, first_placement
 from grasp_env.simulator import CONTACT_TOL_RANGE, Simulator
 
@@ -210,6 +211,13 @@ class FrictionlessGraspEnv(GraspEnvBase):
       this episode, or its centre leaves the reach box ``|x|, |y| <= 2 w`` about the palm, in
       the palm frame; ``info["dropped"]``), or a failure of the simulator or of the
       analysis' LPs (``info["sim_error"]`` holds the message; the state is left unchanged).
+    * With ``friction=mu > 0``, a step whose hand motion Coulomb friction ``mu`` at every
+      contact could resist (:func:`grasp_env.critical_friction` of the state and the step's
+      hand motion is at most ``mu``: the contacts can hold the object at rest against it)
+      is a **friction jam**: the hand stays where it is, ``info["jammed"]`` and
+      ``info["friction_jam"]`` are True, and the episode goes on, as after a jam without
+      friction. The test is made at the state each step starts from; within a step the
+      motion is the frictionless simulator's (docs/friction.md).
     * Truncation: after ``time_limit`` steps (200 for the registered ids), the env's own
       count, which a refused call leaves as it was. (``gymnasium.make(..., max_episode_steps=
       N)`` adds gymnasium's ``TimeLimit`` on top, whose count restarts at a refused reset.)
@@ -222,7 +230,7 @@ class FrictionlessGraspEnv(GraspEnvBase):
     ``jammed``, ``hand_blocked``, ``dropped``, ``events`` (the simulator's event kinds),
     ``is_success`` (form closure with the object off the support) and the reward terms
     (zero at reset); with ``always_compute_grip=True`` also ``grip_objective`` (``y*`` of any
-    state, ``inf`` if infeasible).
+    state, ``inf`` if infeasible); with ``friction > 0`` also ``friction_jam`` (steps only).
 
     ## Arguments
 
@@ -256,6 +264,8 @@ class FrictionlessGraspEnv(GraspEnvBase):
       reset); see Starting State.
     * ``time_limit``: steps after which an episode is truncated (None: never; the registered
       ids: 200).
+    * ``friction``: a Coulomb coefficient ``mu`` in [0, 1e6] at every contact that stops a
+      step it can jam (0: none, the paper's frictionless task); see Episode End.
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
       ``render_height`` (640, 480; 16 to 16384 pixels).
 
@@ -281,9 +291,9 @@ class FrictionlessGraspEnv(GraspEnvBase):
       closure; the spec has ``reward_threshold=10``; bundled scene names always mean the
       bundled scenes. Added since, with defaults that leave the env as it was: the
       ``"placement"`` start, ``hand_features``, ``reward_hold_weight``
-      (``info["reward_hold"]``) and ``shape_pool``. The time limit of 200 steps is the env's
-      own (``time_limit``) since the batched env (``gymnasium.make_vec``) came: episodes end
-      as before, and ``gymnasium.make`` returns the env without wrappers.
+      (``info["reward_hold"]``), ``shape_pool`` and ``friction``. The time limit of 200
+      steps is the env's own (``time_limit``) since the batched env (``gymnasium.make_vec``)
+      came: episodes end as before, and ``gymnasium.make`` returns the env without wrappers.
 
     Registered ids (``grasp_env.envs.ENV_KWARGS``), all with ``time_limit=200`` and
     ``reward_threshold=10`` with the default reward weights; keyword arguments of
@@ -321,6 +331,7 @@ class FrictionlessGraspEnv(GraspEnvBase):
         hand_features: bool = False,
         shape_pool: int | None = None,
         time_limit: int | None = None,
+        friction: float = 0.0,
         render_mode: str | None = None,
         render_width: int = 640,
         render_height: int = 480,
@@ -345,6 +356,7 @@ class FrictionlessGraspEnv(GraspEnvBase):
             contact_tol, "contact_tol", *CONTACT_TOL_RANGE, lo_open=False, hi_open=True
         )
         self.max_vertices = integer(max_vertices, "max_vertices", 3, TypeError, MAX_VERTICES)
+        self.friction = number(friction, "friction", 0.0, MU_MAX, lo_open=False)
         super().__init__(
             action_size=5 if self.palm_control else 2, render_mode=render_mode,
             render_width=render_width, render_height=render_height,
@@ -496,7 +508,14 @@ class FrictionlessGraspEnv(GraspEnvBase):
         a = self._check_action(action)
         if self._episode is None:
             raise RuntimeError("call reset() before step()")
-        obs, info, error = self._episode.advance(
+        episode = self._episode
+        arrays = (episode.q, episode.h, episode.keys, episode.rows)
+        friction_jam = self.friction > 0.0 and episode.friction_jams(
+            arrays, np.array(a), self._settings, self.friction
+        )
+        if friction_jam:  # the hand stays where it is
+            a = [0.0] * len(a)
+        obs, info, error = episode.advance(
             np.array(a), self._settings, self._obs_low, self._obs_high
         )
         if self.render_mode == "human":
@@ -504,6 +523,9 @@ class FrictionlessGraspEnv(GraspEnvBase):
         reward = float(info[kernel.I_REWARD])
         terminated, truncated = bool(info[kernel.I_TERMINATED]), bool(info[kernel.I_TRUNCATED])
         out = self._info(info[kernel.I_DROPPED], info)
+        if self.friction > 0.0:
+            out["friction_jam"] = friction_jam
+            out["jammed"] = out["jammed"] or friction_jam
         if error is not None:
             out["sim_error"] = error
         return obs, reward, terminated, truncated, out

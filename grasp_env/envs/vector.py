@@ -59,9 +59,10 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         **kwargs: the single env's arguments (:class:`FrictionlessGraspEnv`).
 
     ``infos`` hold, for every sub-env, ``is_success``, ``form_closure``, ``grip_force``,
-    ``jammed``, ``hand_blocked``, ``dropped`` and the reward terms, as the single env's info
-    does (its poses, contacts and events are not batched: :meth:`sub_env` gives what a planner
-    reads), and ``sim_error`` where a step failed.
+    ``jammed``, ``hand_blocked``, ``dropped``, the reward terms and, with ``friction``,
+    ``friction_jam``, as the single env's info does (its poses, contacts and events are not
+    batched: :meth:`sub_env` gives what a planner reads), and ``sim_error`` where a step
+    failed.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -202,6 +203,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         if self._models is None:
             raise RuntimeError("call reset() before step()")
         actions = batch_actions(actions, (self.num_envs, *self.single_action_space.shape))
+        friction_jams = self._friction_jams(actions)
+        actions[friction_jams] = 0.0  # those hands stay where they are
         numba.set_num_threads(self.threads)
         step_batch(
             self._models, self._consts, self._settings, self._q, self._h, self._keys, self._rows,
@@ -218,21 +221,36 @@ class FrictionlessGraspVectorEnv(VectorEnv):
             if error is not None:
                 errors[i] = error
             self._write(i, episode)
-        return self._results(errors)
+        self._info[friction_jams, kernel.I_JAMMED] = 1.0
+        return self._results(errors, friction_jams)
 
-    def _results(self, errors: dict[int, str]):
+    def _friction_jams(self, actions: np.ndarray) -> np.ndarray:
+        """Which sub-envs' actions ask for a hand motion their friction jams (none without
+        friction), tested as the single env tests it."""
+        jams = np.zeros(self.num_envs, dtype=bool)
+        mu = self.envs[0].friction
+        if mu > 0.0:
+            for i in range(self.num_envs):
+                m = self._counts[i]
+                arrays = (self._q[i], self._h[i], self._keys[i, :m], self._rows[i, :m])
+                jams[i] = self.envs[i]._episode.friction_jams(
+                    arrays, actions[i], self._settings, mu
+                )
+        return jams
+
+    def _results(self, errors: dict[int, str], friction_jams: np.ndarray):
         info = self._info
         observations = self._seen.copy()
         rewards = info[:, kernel.I_REWARD].copy()
         terminated = info[:, kernel.I_TERMINATED] != 0.0
         truncated = info[:, kernel.I_TRUNCATED] != 0.0
-        infos = self._step_infos(info, errors)
+        infos = self._step_infos(info, errors, friction_jams)
         done = np.flatnonzero(terminated | truncated)
         if len(done):
             final = {"final_obs": observations.copy(), "_final_obs": np.zeros(self.num_envs, bool)}
             final["_final_obs"][done] = True
             infos |= final
-            infos["final_info"] = self._step_infos(info, errors)
+            infos["final_info"] = self._step_infos(info, errors, friction_jams)
             infos["_final_info"] = final["_final_obs"].copy()
             resets = []
             for i in done:
@@ -245,9 +263,13 @@ class FrictionlessGraspVectorEnv(VectorEnv):
                     infos[key][i] = reset_info[key]
         return observations, rewards, terminated, truncated, infos
 
-    def _step_infos(self, info: np.ndarray, errors: dict[int, str]) -> dict[str, np.ndarray]:
+    def _step_infos(
+        self, info: np.ndarray, errors: dict[int, str], friction_jams: np.ndarray
+    ) -> dict[str, np.ndarray]:
         everyone = np.ones(self.num_envs, dtype=bool)
         out: dict[str, np.ndarray] = {}
+        if self.envs[0].friction > 0.0:
+            out["friction_jam"], out["_friction_jam"] = friction_jams.copy(), everyone
         for key, column in INFO_FLAGS.items():
             out[key], out[f"_{key}"] = info[:, column] != 0.0, everyone
         for key, column in INFO_VALUES.items():

@@ -53,7 +53,7 @@ _NO_COST = np.zeros(3)
 
 
 def edge_rows(
-    state: State, hand_velocity: np.ndarray
+    state: State, hand_velocity
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """The contacts' normal and tangent rows for the hand velocity ``hand_velocity``.
 
@@ -67,12 +67,19 @@ def edge_rows(
     require_state(state)
     dh = real_vector(hand_velocity, "hand_velocity", 5)
     points, normals, bodies = state.contact_arrays()
+    return contact_edge_rows(
+        state.scene, state.object_pose, state.hand, points, normals, bodies, dh
+    )
+
+
+def contact_edge_rows(scene, pose, hand, points, normals, bodies, dh):
+    """:func:`edge_rows` from arrays: the object's pose (3,), the hand (5,), contact points
+    and normals (n, 2), body indices (n,) and the hand velocity ``dh`` (5,)."""
     if len(bodies) == 0:
         return None
-    scene = state.scene
-    poses = kin.body_poses_W(scene, state.hand)
-    twists = kin.body_twists_W(scene, state.hand, dh)
-    velocities = np.zeros_like(points)
+    poses = kin.body_poses_W(scene, hand)
+    twists = kin.body_twists_W(scene, hand, dh)
+    velocities = np.zeros((len(bodies), 2))
     for i, b in enumerate(bodies):
         if b != geo.SUPPORT:
             r = points[i] - poses[b - 1, :2]
@@ -83,7 +90,7 @@ def edge_rows(
         return None
     tangents = np.column_stack([-normals[:, 1], normals[:, 0]])
     rho = gyration_radius(scene)
-    r = points - np.asarray(state.object_pose[:2], dtype=float)
+    r = points - np.asarray(pose[:2], dtype=float)
     rows = []
     for d in (normals, tangents):
         moment = (r[:, 0] * d[:, 1] - r[:, 1] * d[:, 0]) / rho
@@ -122,8 +129,11 @@ def reference_jams(E: np.ndarray, xi: np.ndarray) -> bool:
     return -res.value > FEAS_TOL * float(np.max(np.abs(xi)))
 
 
-def _jams(rows, mu: float) -> bool:
-    """The jam test at ``mu`` on :func:`edge_rows`' rows: compiled, HiGHS where undecided."""
+def jams_on_rows(rows, mu: float) -> bool:
+    """The jam test at ``mu`` on :func:`edge_rows`' rows (None: nothing to jam):
+    compiled, HiGHS where undecided."""
+    if rows is None:
+        return False
     E, xi = cone_edges(rows, mu)
     try:
         return solve_velocity_lp(E, xi, _NO_COST).status == "infeasible"
@@ -142,7 +152,7 @@ def jams_with_friction(state: State, hand_velocity, mu: float) -> bool:
     """
     mu = number(mu, "mu", 0.0, MU_MAX, lo_open=False)
     rows = edge_rows(state, hand_velocity)
-    return rows is not None and _jams(rows, mu)
+    return jams_on_rows(rows, mu)
 
 
 def critical_friction(state: State, hand_velocity) -> float:
@@ -159,14 +169,14 @@ def critical_friction(state: State, hand_velocity) -> float:
     magnitude of ``hand_velocity`` does not matter, only its direction.
     """
     rows = edge_rows(state, hand_velocity)
-    if rows is None or not _jams(rows, MU_MAX):
+    if not jams_on_rows(rows, MU_MAX):
         return math.inf
-    if _jams(rows, 0.0):
+    if jams_on_rows(rows, 0.0):
         return 0.0
     low, high = 0.0, math.atan(MU_MAX)
     while high - low > ANGLE_TOL:
         mid = 0.5 * (low + high)
-        if _jams(rows, math.tan(mid)):
+        if jams_on_rows(rows, math.tan(mid)):
             high = mid
         else:
             low = mid
@@ -177,8 +187,10 @@ __all__ = [
     "ANGLE_TOL",
     "MU_MAX",
     "cone_edges",
+    "contact_edge_rows",
     "critical_friction",
     "edge_rows",
+    "jams_on_rows",
     "jams_with_friction",
     "reference_jams",
 ]
