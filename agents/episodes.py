@@ -198,6 +198,7 @@ class Episode:
     dropped: bool = False
     jammed: bool = False
     error: str = ""
+    friction: float = 0.0
 
 
 def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extra) -> gym.Env:
@@ -212,16 +213,18 @@ def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extr
 
 
 def run_episode(
-    spec: PolicySpec, suite: str, scene: str, seed: int, max_steps: int | None, frames=None
-) -> Episode:
-    """Run one episode to its end; appends rendered frames to ``frames`` if given."""
+    spec: PolicySpec, suite: str, scene: str, seed: int, max_steps: int | None, frames=None,
+    friction: float = 0.0,
+) -> Episode:  # fmt: skip
+    """Run one episode to its end, with Coulomb ``friction`` at every contact (the env's
+    ``friction``); appends rendered frames to ``frames`` if given."""
     suite_kwargs = SHAPE_SUITES.get(suite, {"scene": scene})
-    extra = {}
+    extra: dict = {"friction": friction} if friction else {}
     if frames is not None:
-        extra = {"render_mode": "rgb_array", "render_width": GIF_SIZE[0]}
+        extra |= {"render_mode": "rgb_array", "render_width": GIF_SIZE[0]}
         extra["render_height"] = GIF_SIZE[1]
     env = make_env(spec, suite_kwargs, max_steps, **extra)
-    ep = Episode(suite, scene, spec.name, seed)
+    ep = Episode(suite, scene, spec.name, seed, friction=friction)
     try:
         reset, act = make_policy(spec, env)
         obs, info = env.reset(seed=seed)

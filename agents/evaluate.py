@@ -2,6 +2,7 @@
 
     python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
         [--out DIR] [--workers 2] [--results-page docs/results.md]
+        [--friction 0,0.1,0.2,0.3,0.4 [--friction-page docs/friction_results.md]]
 
 Suites: ``bundled`` (every bundled scene from its start, ``--bundled-episodes`` seeds each),
 ``heldout`` (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds
@@ -14,7 +15,11 @@ policy meets the same scenes, starts and seeds. Writes
 ``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
 printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
 into ``--out``; with ``--results-page PATH`` also the results page (``docs/results.md``: the
-tables with the date, the commit and the command), which is written nowhere else. Every row
+tables with the date, the commit and the command), which is written nowhere else.
+``--friction`` plays every episode at each listed Coulomb coefficient (the env's
+``friction``: a step friction can resist jams); the summary has a row per coefficient and
+``friction.png`` plots success against it, and ``--friction-page PATH`` writes that table
+and plot as a page (:mod:`agents.friction_page`, the plot into ``images/`` beside it). Every row
 says what its policy calls at test time (``test_time``: ``agents.models.TEST_TIMES``). See
 ``docs/training.md`` for the metrics. The suites, policies and episodes: ``agents.episodes``;
 the statistics, tables, chart and results page: ``agents.summary``.
@@ -23,9 +28,11 @@ the statistics, tables, chart and results page: ``agents.summary``.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shlex
 import sys
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
@@ -44,10 +51,12 @@ from agents.episodes import (
     run_episode,
     run_job,
 )
+from agents.friction_page import friction_page, friction_plot
 from agents.provenance import git_commit, utc_now
 from agents.summary import bar_chart, markdown_table, results_page, summarize, write_csv, write_gif
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.mechanics.friction import MU_MAX
 
 
 def evaluate(
@@ -61,18 +70,20 @@ def evaluate(
     wide_episodes: int = 0,
     perturbed_episodes: int = 0,
     lift_episodes: int = 0,
+    frictions: Sequence[float] = (0.0,),
 ) -> list[dict[str, Any]]:
-    """Run every policy on every suite, write every output into ``out``; returns the rows."""
+    """Run every policy on every suite at every friction level, write every output into
+    ``out``; returns the rows."""
     out.mkdir(parents=True, exist_ok=True)
     scenes = scenes if scenes is not None else grasp_env.bundled_scenes()
-    jobs = [
-        (spec, "bundled", scene, seed, max_steps)
+    episodes_at = [
+        (spec, "bundled", scene, seed)
         for spec in specs
         for scene in scenes
         for seed in range(bundled_episodes)
     ]
-    jobs += [
-        (spec, suite, _suite_scene(suite, HELDOUT_SEED + k), HELDOUT_SEED + k, max_steps)
+    episodes_at += [
+        (spec, suite, _suite_scene(suite, HELDOUT_SEED + k), HELDOUT_SEED + k)
         for suite, n in (
             ("heldout", episodes),
             ("wide", wide_episodes),
@@ -82,6 +93,7 @@ def evaluate(
         for spec in specs
         for k in range(n)
     ]
+    jobs = [(*e, max_steps, None, mu) for mu in frictions for e in episodes_at]
     if workers > 1:
         with ProcessPoolExecutor(workers, initializer=_one_thread) as pool:
             results = _progress(pool.map(run_job, jobs, chunksize=1), len(jobs))
@@ -94,6 +106,8 @@ def evaluate(
     table = markdown_table(rows)
     (out / "summary.md").write_text(table)
     bar_chart(out / "summary.png", rows)
+    if len(frictions) > 1:
+        friction_plot(out / "friction.png", rows)
     for spec in specs:
         frames: list[np.ndarray] = []
         run_episode(spec, "bundled", GIF_SCENE, 0, max_steps, frames)
@@ -223,6 +237,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--no-scripted", action="store_true", help="leave the planner out (default: off)"
     )
+    parser.add_argument(
+        "--friction", type=friction_levels, default=(0.0,), metavar="MU,MU,...",
+        help="Coulomb coefficients to play every episode at (the env's friction)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--friction-page", metavar="PATH",
+        help="also write the success-against-friction page there (with two or more --friction "
+        "levels; docs/friction_results.md is the shipped one)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.workers > MAX_WORKERS:
         parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
@@ -240,6 +263,11 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--out {problem}")
     if args.results_page and (problem := results_page_problem(Path(args.results_page))):
         parser.error(f"--results-page {problem}")
+    if args.friction_page:
+        if len(args.friction) < 2:
+            parser.error("--friction-page needs two or more --friction levels")
+        if problem := results_page_problem(Path(args.friction_page)):
+            parser.error(f"--friction-page {problem}")
     rows = evaluate(
         specs,
         Path(args.out),
@@ -251,14 +279,38 @@ def main(argv: list[str] | None = None) -> None:
         args.wide_episodes,
         args.perturbed_episodes,
         args.lift_episodes,
+        args.friction,
     )
     print(markdown_table(rows), end="")
     print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")
+    command = shlex.join(["python", "-m", "agents.evaluate", *argv])
     if args.results_page:
-        command = shlex.join(["python", "-m", "agents.evaluate", *argv])
         page = results_page(rows, command, utc_now(), git_commit())
         Path(args.results_page).write_text(page)
         print(f"wrote {args.results_page}")
+    if args.friction_page:
+        page_path = Path(args.friction_page)
+        image = Path("images") / f"{page_path.stem}.png"
+        (page_path.parent / "images").mkdir(exist_ok=True)
+        friction_plot(page_path.parent / image, rows)
+        page = friction_page(rows, image.as_posix(), command, utc_now(), git_commit())
+        page_path.write_text(page)
+        print(f"wrote {page_path} and {page_path.parent / image}")
+
+
+def friction_levels(text: str) -> tuple[float, ...]:
+    """``--friction``'s comma-separated Coulomb coefficients, each in [0, MU_MAX], distinct,
+    in increasing order."""
+    try:
+        levels = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not comma-separated numbers: {text!r}") from None
+    for mu in levels:
+        if not (math.isfinite(mu) and 0.0 <= mu <= MU_MAX):
+            raise argparse.ArgumentTypeError(f"each must be in [0, {MU_MAX:g}], got {mu!r}")
+    if len(set(levels)) != len(levels):
+        raise argparse.ArgumentTypeError(f"levels repeat: {text!r}")
+    return tuple(sorted(levels))
 
 
 if __name__ == "__main__":

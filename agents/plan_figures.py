@@ -167,13 +167,19 @@ def _caption(
     return text
 
 
-def _title(plan: planning.Plan, i: int, events: dict[int, str], weight: float) -> list[str]:
-    """Two lines: the step and what happens there; the phase and ``y*``."""
+def _title(
+    plan: planning.Plan, i: int, events: dict[int, str], weight: float,
+    friction: dict[int, float],
+) -> list[str]:  # fmt: skip
+    """Two lines: the step and what happens there; the phase, ``y*`` and the critical
+    friction of the lifting motion it starts (``friction``, by step)."""
     st = plan.steps[i]
     first = f"step {i}" + (f": {events[i]}" if i in events else "")
     second = st.phase
     if math.isfinite(st.grip):
         second += f", y* = {st.grip / weight:.4f} W"
+    if i in friction:
+        second += f", mu* = {friction[i]:.3g}"
     return [first, second]
 
 
@@ -191,9 +197,12 @@ def plan_bounds(plan: planning.Plan, margin: float = 0.05) -> tuple[float, float
 
 
 # ---------------------------------------------------------------------- images
-def write_filmstrip(plan: planning.Plan, path: Path) -> list[int]:
+def write_filmstrip(
+    plan: planning.Plan, path: Path, friction: dict[int, float] | None = None
+) -> list[int]:
     """Frames of the plan in a grid (like the paper's Fig. 13), each titled with its step and
-    event, its phase and ``y*``, above a legend; returns the steps shown."""
+    event, its phase, ``y*`` and, where given by step (``friction``), the critical friction
+    of the lifting motion it starts; above a legend; returns the steps shown."""
     from grasp_env.render import Renderer
 
     idx = frame_indices(plan, FILMSTRIP_FRAMES)
@@ -210,7 +219,9 @@ def write_filmstrip(plan: planning.Plan, path: Path) -> list[int]:
         cells = []
         for i in idx:
             frame = renderer.draw(plan.steps[i].state)
-            title = renderer.text_image(_title(plan, i, events, weight), w, bold_first=True)
+            title = renderer.text_image(
+                _title(plan, i, events, weight, friction or {}), w, bold_first=True
+            )
             cells.append(np.vstack([title, frame]))
         n_steps = len(plan.steps)
         heading = renderer.text_image(

@@ -14,10 +14,48 @@ import numpy as np
 from grasp_env import planning
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.mechanics import closure as mech
+from grasp_env.mechanics.friction import critical_friction
 
 
-def plan_to_dict(plan: planning.Plan) -> dict:
-    """The plan as JSON-ready data: status, phases and every step's state."""
+def lifting_friction(plan: planning.Plan) -> dict[int, float]:
+    """The critical friction of every lifting motion, by the step it starts from: step ``k``
+    (the state the lifting starts in, then each lifting step but the last) under the hand
+    motion to step ``k + 1``, a lifting step (:func:`grasp_env.critical_friction`). The
+    lifting survives Coulomb friction below the least of them."""
+    out = {}
+    for k in range(len(plan.steps) - 1):
+        if plan.steps[k + 1].phase == "lifting":
+            state = plan.steps[k].state
+            out[k] = critical_friction(state, plan.steps[k + 1].state.hand - state.hand)
+    return out
+
+
+def least_friction(friction: dict[int, float]) -> tuple[int, float] | None:
+    """The step and value of the least critical friction of :func:`lifting_friction` (the
+    first step where it is attained), None without a lifting motion."""
+    if not friction:
+        return None
+    step = min(friction, key=lambda k: (friction[k], k))
+    return step, friction[step]
+
+
+def friction_jam_step(friction: dict[int, float], mu: float) -> int | None:
+    """The first step of :func:`lifting_friction` whose motion Coulomb friction ``mu`` can
+    jam (critical friction at most ``mu``), None if the lifting survives it."""
+    return next((k for k in sorted(friction) if friction[k] <= mu), None)
+
+
+def _json_friction(mu: float) -> float | str:
+    return mu if math.isfinite(mu) else "inf"
+
+
+def plan_to_dict(plan: planning.Plan, friction: dict[int, float] | None = None) -> dict:
+    """The plan as JSON-ready data: status, phases and every step's state, with the critical
+    friction of each lifting motion (``friction``, else :func:`lifting_friction`; ``"inf"``
+    where no friction jams it, null on steps that start no lifting motion) and the least of
+    them."""
+    friction = lifting_friction(plan) if friction is None else friction
+    least = least_friction(friction)
     steps = []
     for i, st in enumerate(plan.steps):
         s = st.state
@@ -41,6 +79,7 @@ def plan_to_dict(plan: planning.Plan) -> dict:
                 ],
                 "form_closure": bool(mech.is_form_closure(s)),
                 "grip": st.grip if math.isfinite(st.grip) else None,
+                "critical_friction": _json_friction(friction[i]) if i in friction else None,
             }
         )
     return {
@@ -50,6 +89,8 @@ def plan_to_dict(plan: planning.Plan) -> dict:
         "cpu_time": plan.cpu_time,
         "phases": {k: list(v) for k, v in plan.phase_bounds().items()},
         "form_closure_step": plan.form_closure_step(),
+        "min_critical_friction": None if least is None else _json_friction(least[1]),
+        "min_critical_friction_step": None if least is None else least[0],
         "steps": steps,
     }
 
@@ -88,9 +129,10 @@ def env_closure_step(plan: planning.Plan, scene) -> tuple[int, int] | None:
     return counts[0], sum(counts)
 
 
-def summary(plan: planning.Plan, scene=None) -> str:
+def summary(plan: planning.Plan, scene=None, friction: dict[int, float] | None = None) -> str:
     """Phase boundaries, the form-closure step (and where the env from the scene's start
-    reaches it, :func:`env_closure_step`), the final contacts and y*, the CPU time."""
+    reaches it, :func:`env_closure_step`), the least critical friction of the lifting
+    (``friction``: :func:`lifting_friction`), the final contacts and y*, the CPU time."""
     lines = [f"status: {plan.status} ({plan.message})"]
     if plan.placement:
         lines.append(f"pre-liftoff placement: {plan.placement}")
@@ -114,6 +156,13 @@ def summary(plan: planning.Plan, scene=None) -> str:
         )
     else:
         lines.append("form closure: never")
+    least = least_friction(friction or {})
+    if least is not None:
+        lines.append(
+            f"least critical friction of the lifting: {least[1]:.4g} at step {least[0]} (a "
+            "Coulomb coefficient at or above it can jam the lifting there; below it, every "
+            "lifting motion moves the object)"
+        )
     if plan.steps:
         final = plan.steps[-1]
         bodies = ", ".join(f"{c.body} ({c.kind})" for c in final.state.contacts)

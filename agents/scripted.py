@@ -9,15 +9,19 @@ plans a grasp with :func:`grasp_env.planning.plan_grasp` and writes into ``DIR``
 hand, object, contacts with force arrows, a title per frame, a legend), ``grip_branches.png``
 (``y*`` against the first finger's angle along every four-contact branch the grip
 adjustment evaluated, zoomed to the adjustment, like Fig. 14), ``plan.gif`` (the whole
-plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase);
+plan) and ``plan.json`` (per step: hand configuration, object pose, contacts, ``y*``, phase,
+and the critical friction of each lifting motion, with the least of them:
+:func:`agents.plan_report.lifting_friction`);
 the images are drawn by :mod:`agents.plan_figures` and :mod:`agents.grip_branches`, the
 plan's data and summary by :mod:`agents.plan_report`.
 It prints a summary and exits with status 0 on form closure, 1 if the plan fails (the object
 is tippable but no grasp was found; the summary says why, and a failed attempt that passed
 through form closure without holding the object off the support is reported as such), 3 if
 the object cannot be lifted without friction (both tippability regions empty), 2 on bad
-arguments. Its exploratory lifting (up to ``EXPLORE_MOVES`` = 20,000 simulated moves) logs
-its progress every 2,000 moves.
+arguments. ``--friction MU`` plays the plan against Coulomb friction ``MU`` at every contact:
+where a lifting motion's critical friction is at most ``MU`` the hand jams there, and the
+plan fails (status 1). Its exploratory lifting (up to ``EXPLORE_MOVES`` = 20,000 simulated
+moves) logs its progress every 2,000 moves.
 
 Step counts: the plan counts steps from its pre-liftoff placement (step 0, the fingers already
 closed on the object), one step a planned increment; ``agents.evaluate`` counts
@@ -58,11 +62,12 @@ import numpy as np
 
 from agents.grip_branches import write_branch_plot
 from agents.plan_figures import write_filmstrip, write_gif
-from agents.plan_report import plan_to_dict, summary
+from agents.plan_report import friction_jam_step, lifting_friction, plan_to_dict, summary
 from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
 from grasp_env.errors import ComputationError
+from grasp_env.mechanics.friction import MU_MAX
 from grasp_env.simulator import Simulator
 
 #: Object pose deviation (relative to the object's size) from the plan that makes the
@@ -97,7 +102,13 @@ def main(argv: list[str] | None = None) -> int:
         "--out", type=Path, help="output directory (default: runs/scripted/<scene name>)"
     )
     parser.add_argument("--dq", type=float, default=0.02, help="finger increment of lifting (rad)")
+    parser.add_argument(
+        "--friction", type=float, default=0.0,
+        help="Coulomb coefficient at every contact the plan is played against (0: none)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
+    if not (math.isfinite(args.friction) and 0.0 <= args.friction <= MU_MAX):
+        parser.error(f"--friction must be in [0, {MU_MAX:g}], got {args.friction!r}")
     if not (math.isfinite(args.dq) and 0 < args.dq <= 0.5):
         parser.error(f"--dq must be in (0, 0.5], got {args.dq!r}")
     try:
@@ -117,20 +128,28 @@ def main(argv: list[str] | None = None) -> int:
     if plan.status == "not_tippable":
         print(f"not tippable: {plan.message}")
         return EXIT_NOT_TIPPABLE
+    friction = lifting_friction(plan)
     with open(args.out / "plan.json", "w") as f:
-        json.dump({"scene": scene.name, **plan_to_dict(plan)}, f, indent=1)
-    frames = write_filmstrip(plan, args.out / "filmstrip.png")
+        json.dump({"scene": scene.name, **plan_to_dict(plan, friction)}, f, indent=1)
+    frames = write_filmstrip(plan, args.out / "filmstrip.png", friction)
     write_gif(plan, args.out / "plan.gif")
     written = ["plan.json", "filmstrip.png", "plan.gif"]
     if plan.success:
         write_branch_plot(sim, plan, args.out / "grip_branches.png")
         written.append("grip_branches.png")
-    print(summary(plan, scene))
+    print(summary(plan, scene, friction))
     print(f"filmstrip frames (plan steps): {frames}")
     print(f"wrote {', '.join(written)} to {args.out}")
     if not plan.success:
         print(f"no grasp: {plan.message}")
         return EXIT_FAILED
+    if args.friction > 0.0:
+        jam = friction_jam_step(friction, args.friction)
+        if jam is not None:
+            print(f"no grasp with friction {args.friction:g}: the hand jams at step {jam} "
+                  f"(critical friction {friction[jam]:.4g})")  # fmt: skip
+            return EXIT_FAILED
+        print(f"with friction {args.friction:g}: every lifting motion still moves the object")
     return EXIT_OK
 
 

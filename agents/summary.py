@@ -57,14 +57,26 @@ def bootstrap_mean(values: list[float], seed: int = 0) -> tuple[float, float]:
 def summarize(
     episodes: list[Episode], test_times: dict[str, str] | None = None
 ) -> list[dict[str, Any]]:
-    """One row per (suite, policy): rates with Wilson CIs, means with bootstrap CIs, and
+    """One row per (friction, suite, policy): rates with Wilson CIs, means with bootstrap CIs,
     ``test_time``, what the policy calls at test time (``test_times``, by policy name; "" for
-    a policy it does not name).
+    a policy it does not name), and ``friction``, the Coulomb coefficient the episodes were
+    played at (0: the frictionless task).
 
     Suites: the paper's scene alone (``fig13``), all bundled scenes (left out where fig13 is
     the only one: its rows would repeat fig13's), the held-out shapes in the default and the
     wide ranges and from the planner's placement, fig13 from perturbed starts.
     """
+    rows = []
+    for friction in sorted({e.friction for e in episodes}):
+        at = [e for e in episodes if e.friction == friction]
+        rows += [r | {"friction": friction} for r in _summarize_one(at, test_times)]
+    return rows
+
+
+def _summarize_one(
+    episodes: list[Episode], test_times: dict[str, str] | None
+) -> list[dict[str, Any]]:
+    """:func:`summarize` of episodes played at one friction."""
     rows = []
     test_times = test_times or {}
     bundled = [e for e in episodes if e.suite == "bundled"]
@@ -148,8 +160,9 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
                 f"({num(r['steps_to_closure_ci_low'], '.1f')}-"
                 f"{num(r['steps_to_closure_ci_high'], '.1f')})"
             )
+        suite = r["suite"] if not r.get("friction") else f"{r['suite']} (mu {r['friction']:g})"
         lines.append(
-            f"| {r['suite']} | {r['policy']} | {r['test_time']} | {r['episodes']} | {success} "
+            f"| {suite} | {r['policy']} | {r['test_time']} | {r['episodes']} | {success} "
             f"| {grip} | {closure} | {r['drops']} | {r['jams']} | {r['errors']} |"
         )
     return "\n".join(lines) + "\n"

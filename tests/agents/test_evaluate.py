@@ -14,6 +14,7 @@ pytest.importorskip("stable_baselines3")
 from agents import config as cf
 from agents import episodes as ep
 from agents import evaluate as ev
+from agents import friction_page as fp
 from agents import models, provenance
 from agents import summary as sm
 from agents.planner_agents import PlannerGrip, PlannerHandover, PlannerResidual
@@ -192,3 +193,35 @@ def test_help_shows_every_default(capsys):
         assert f"{option} {default}" in out, option
     assert "(default: the env's time limit, 200)" in out and "default: none" in out
     assert "(default: None)" not in out and "(default: [])" not in out
+
+
+def test_friction_levels_are_parsed_and_refused_by_name(capsys):
+    assert ev.friction_levels("0.3,0,0.1") == (0.0, 0.1, 0.3)
+    for bad in ("0.1,x", "-0.1", "nan", "0.1,0.1", "2e6"):
+        with pytest.raises(SystemExit):
+            ev.main(["--models", "--friction", bad])
+        assert "--friction" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        ev.main(["--models", "--friction", "0.2", "--friction-page", "x.md"])
+    assert "two or more" in capsys.readouterr().err
+
+
+def test_rows_at_each_friction_and_the_friction_page(tmp_path):
+    """Episodes at two coefficients: a row per coefficient, the zero rows as without
+    friction, and a page whose table has one success column per coefficient."""
+    rough = [ep.Episode(**{**e.__dict__, "friction": 0.3}) for e in EPISODES]
+    rough[0].success = False
+    rows = sm.summarize(EPISODES + rough, TEST_TIMES)
+    plain = sm.summarize(EPISODES, TEST_TIMES)
+    assert rows[: len(plain)] == plain
+    assert [r["friction"] for r in rows] == [0.0] * len(plain) + [0.3] * len(plain)
+    assert "| fig13 (mu 0.3) | scripted | planner | 1 | 0.00" in sm.markdown_table(rows)
+    table = fp.friction_table(rows)
+    assert table.splitlines()[0] == "| suite | policy | test time | n | mu = 0 | mu = 0.3 |"
+    assert "| fig13 | scripted | planner | 1 | 1.00 (0.21-1.00) | 0.00 (0.00-0.79) |" in table
+    page = fp.friction_page(rows, "images/f.png", "python -m agents.evaluate", "d", "c")
+    assert page.startswith("# Success against friction\n") and table in page
+    assert "![success against friction](images/f.png)" in page
+    pytest.importorskip("matplotlib", reason="the viz extra draws the plot")
+    fp.friction_plot(tmp_path / "f.png", rows)
+    assert (tmp_path / "f.png").stat().st_size > 0

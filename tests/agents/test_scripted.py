@@ -120,8 +120,10 @@ def test_cli_refuses_a_non_tippable_scene_cleanly(tmp_path):
     [
         (["--scene", "no_such_scene"], "--scene 'no_such_scene'"),
         (["--scene", "fig13", "--dq", "-1"], "--dq must be"),
+        (["--scene", "fig13", "--friction", "-0.1"], "--friction must be"),
+        (["--scene", "fig13", "--friction", "nan"], "--friction must be"),
     ],
-    ids=["unknown-scene", "negative-dq"],
+    ids=["unknown-scene", "negative-dq", "negative-friction", "nan-friction"],
 )
 def test_cli_bad_arguments_name_the_field(argv, needle, tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
@@ -264,3 +266,32 @@ def test_cli_exits_1_with_the_reason_when_a_tippable_object_is_not_lifted(tmp_pa
     assert "no tipping placement" in out
     for name in ("plan.json", "filmstrip.png", "plan.gif"):
         assert (tmp_path / "out" / name).stat().st_size > 0, name
+
+
+def test_plan_json_has_the_critical_friction_of_every_lifting_motion(fig13_out):
+    """Each lifting motion's mu* as grasp_env.critical_friction gives it for the state and
+    the next step's hand, none elsewhere, and the least of them with its step."""
+    plan = json.loads((fig13_out / "plan.json").read_text())
+    a, b = plan["phases"]["lifting"]
+    steps = plan["steps"]
+    lifting = {k: steps[k]["critical_friction"] for k in range(a - 1, b)}
+    assert all(steps[k]["critical_friction"] is None for k in range(len(steps)) if k not in lifting)
+    state = scripted.planning.plan_grasp(grasp_env.load_scene("fig13")).steps[a - 1].state
+    motion = np.subtract(steps[a]["palm"] + steps[a]["fingers"], state.hand)
+    assert lifting[a - 1] == grasp_env.critical_friction(state, motion)
+    least = min(lifting.values())
+    assert plan["min_critical_friction"] == least
+    assert lifting[plan["min_critical_friction_step"]] == least
+
+
+def test_cli_with_friction_fails_where_the_lifting_jams(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("imageio")
+    assert main(["--scene", "fig13", "--out", str(tmp_path / "a"), "--friction", "0.3"]) == 0
+    assert "every lifting motion still moves the object" in capsys.readouterr().out
+    plan = json.loads((tmp_path / "a" / "plan.json").read_text())
+    mu = plan["min_critical_friction"]
+    out = str(tmp_path / "b")
+    assert main(["--scene", "fig13", "--out", out, "--friction", str(mu)]) == EXIT_FAILED
+    text = capsys.readouterr().out
+    assert f"the hand jams at step {plan['min_critical_friction_step']}" in text
