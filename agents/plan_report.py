@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from agents.provenance import generated_header
 from grasp_env import planning
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.mechanics import closure as mech
@@ -43,6 +44,73 @@ def friction_jam_step(friction: dict[int, float], mu: float) -> int | None:
     """The first step of :func:`lifting_friction` whose motion Coulomb friction ``mu`` can
     jam (critical friction at most ``mu``), None if the lifting survives it."""
     return next((k for k in sorted(friction) if friction[k] <= mu), None)
+
+
+def pinch_friction(state) -> tuple[float, float, float] | None:
+    """Nguyen's closed form for the state's two finger contacts, where there are exactly one
+    on each finger: the angles (rad) between each contact normal and the line joining the
+    contacts, and ``tan`` of the larger, the least friction at which the two can pinch the
+    object (the forces along that line, inside both cones)."""
+    fingers = [c for c in state.contacts if c.body in ("finger1", "finger2")]
+    if sorted(c.body for c in fingers) != ["finger1", "finger2"]:
+        return None
+    a, b = fingers
+    d = (b.point - a.point) / float(np.hypot(*(b.point - a.point)))
+    angles = [
+        math.acos(min(1.0, max(-1.0, float(n @ s)))) for n, s in ((a.normal, d), (b.normal, -d))
+    ]
+    return angles[0], angles[1], math.tan(max(angles)) if max(angles) < math.pi / 2 else math.inf
+
+
+def friction_page(
+    plan: planning.Plan, friction: dict[int, float], command: str, date: str, commit: str
+) -> str:
+    """A page of the plan's lifting against friction: each lifting motion's critical
+    friction, the least, and at the state the lifting starts from the two finger contacts'
+    closed form (:func:`pinch_friction`), with the date, the commit and the command."""
+    scene = plan.steps[0].state.scene.name
+    lines = [
+        f"# `{scene}`: the lifting against friction",
+        "",
+        *generated_header("agents.scripted --friction-page", command, date, commit),
+        "Each row is a lifting motion: the state at that step of the plan and the hand motion "
+        "to the next step. `mu*` is the least Coulomb coefficient, the same at every contact, "
+        "at which the contacts could hold the object at rest against that motion "
+        "(`grasp_env.critical_friction`, [friction.md](friction.md)): below it the object "
+        "moves as the frictionless plan says it may; at or above it the hand can jam.",
+        "",
+        "| step | phase | contacts | mu* |",
+        "| --- | --- | --- | --- |",
+    ]
+    for k, mu in friction.items():
+        st = plan.steps[k]
+        bodies = ", ".join(f"{c.body} ({c.kind})" for c in st.state.contacts)
+        lines.append(f"| {k} | {st.phase} | {bodies} | {mu:.4f} |")
+    least = least_friction(friction)
+    if least is not None:
+        first = min(friction)
+        lines += [
+            "",
+            f"Least: **{least[1]:.4f}** at step {least[0]}; at the state the lifting starts "
+            f"from (step {first}): {friction[first]:.4f}.",
+        ]
+        pinch = pinch_friction(plan.steps[first].state)
+        if pinch is not None:
+            a1, a2, mu = pinch
+            lines += [
+                "",
+                f"At step {first} the fingers pinch the object: the angles between the two "
+                f"finger contacts' normals and the line joining them are "
+                f"{math.degrees(a1):.2f} and {math.degrees(a2):.2f} degrees, and the tangent "
+                f"of the larger, {mu:.4f}, is the least friction at which the two alone hold "
+                "the object against the squeeze (Nguyen's condition); "
+                + (
+                    "it is the step's mu*: the other contacts offer no jam with less."
+                    if math.isclose(mu, friction[first], rel_tol=1e-6)
+                    else f"with the other contacts the step's mu* is {friction[first]:.4f}."
+                ),
+            ]
+    return "\n".join(lines) + "\n"
 
 
 def _json_friction(mu: float) -> float | str:

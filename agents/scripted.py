@@ -55,6 +55,7 @@ import json
 import logging
 import math
 import os
+import shlex
 import sys
 from pathlib import Path
 
@@ -62,7 +63,14 @@ import numpy as np
 
 from agents.grip_branches import write_branch_plot
 from agents.plan_figures import write_filmstrip, write_gif
-from agents.plan_report import friction_jam_step, lifting_friction, plan_to_dict, summary
+from agents.plan_report import (
+    friction_jam_step,
+    friction_page,
+    lifting_friction,
+    plan_to_dict,
+    summary,
+)
+from agents.provenance import git_commit, utc_now
 from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
@@ -106,6 +114,11 @@ def main(argv: list[str] | None = None) -> int:
         "--friction", type=float, default=0.0,
         help="Coulomb coefficient at every contact the plan is played against (0: none)",
     )  # fmt: skip
+    parser.add_argument(
+        "--friction-page", metavar="PATH",
+        help="also write the lifting's critical friction as a page there "
+        "(docs/friction_fig13.md is the shipped one for fig13)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if not (math.isfinite(args.friction) and 0.0 <= args.friction <= MU_MAX):
         parser.error(f"--friction must be in [0, {MU_MAX:g}], got {args.friction!r}")
@@ -132,6 +145,11 @@ def main(argv: list[str] | None = None) -> int:
     with open(args.out / "plan.json", "w") as f:
         json.dump({"scene": scene.name, **plan_to_dict(plan, friction)}, f, indent=1)
     frames = write_filmstrip(plan, args.out / "filmstrip.png", friction)
+    if args.friction_page:
+        command = shlex.join(["python", "-m", "agents.scripted", *sys.argv[1:]])
+        page = friction_page(plan, friction, command, utc_now(), git_commit())
+        Path(args.friction_page).write_text(page)
+        print(f"wrote {args.friction_page}")
     write_gif(plan, args.out / "plan.gif")
     written = ["plan.json", "filmstrip.png", "plan.gif"]
     if plan.success:

@@ -295,3 +295,27 @@ def test_cli_with_friction_fails_where_the_lifting_jams(tmp_path, capsys):
     assert main(["--scene", "fig13", "--out", out, "--friction", str(mu)]) == EXIT_FAILED
     text = capsys.readouterr().out
     assert f"the hand jams at step {plan['min_critical_friction_step']}" in text
+
+
+def test_friction_page_tabulates_the_lifting_and_the_pinch_at_its_start(tmp_path):
+    """The page's rows are plan.json's critical frictions; the start's pinch angles are
+    those between the finger normals and the line joining the finger contacts."""
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("imageio")
+    page = tmp_path / "page.md"
+    out = tmp_path / "out"
+    assert main(["--scene", "fig13", "--out", str(out), "--friction-page", str(page)]) == 0
+    text = page.read_text()
+    plan = json.loads((out / "plan.json").read_text())
+    for k, st in enumerate(plan["steps"]):
+        if st["critical_friction"] is not None:
+            assert f"| {k} | {st['phase']} |" in text
+            assert f"| {st['critical_friction']:.4f} |" in text
+    start = plan["steps"][0]
+    f1, f2 = (c for c in start["contacts"] if c["body"].startswith("finger"))
+    line = np.subtract(f2["point"], f1["point"])
+    line /= np.linalg.norm(line)
+    angles = [np.degrees(np.arccos(np.dot(f1["normal"], line))),
+              np.degrees(np.arccos(np.dot(f2["normal"], -line)))]  # fmt: skip
+    assert f"{angles[0]:.2f} and {angles[1]:.2f} degrees" in text
+    assert f"tangent of the larger, {np.tan(np.radians(max(angles))):.4f}" in text
