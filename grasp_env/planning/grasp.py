@@ -12,9 +12,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from grasp_env.core import geometry as geo
 from grasp_env.core.state import State
 from grasp_env.errors import ComputationError
-from grasp_env.mechanics.tippability import tippability_regions
+from grasp_env.mechanics.tippability import support_contacts, tippability_regions
 from grasp_env.planning import regrasp
 from grasp_env.planning.grip import adjust_grip
 from grasp_env.planning.lifting import lift, stuck_condition
@@ -161,7 +162,28 @@ def _lead(start: State, phase: PhaseResult) -> tuple[list[State], list[np.ndarra
 def _stuck_reason(sim: Simulator, tried: list[tuple[str, State, PhaseResult]], regions) -> str:
     """Why lifting with the palm fixed failed: how it left the object
     (:func:`~grasp_env.planning.lifting.stuck_condition`), from how many placements; with no
-    placement at all, also whether the regions lie lower than the fingers are thick."""
+    placement at all, also whether the regions lie lower than the fingers are thick; and
+    whether the object has a face turned down besides its supporting edge."""
+    why = _placement_reason(sim, tried, regions)
+    if not _faces_down(sim.scene):
+        why += (
+            " (no face but the supporting edge faces down: only a fingertip under a raised "
+            "corner can push the object up)"
+        )
+    return why
+
+
+def _faces_down(scene) -> bool:
+    """Whether a face of the object at rest other than its supporting edge faces down (its
+    inward normal points up): one a finger can push up on without first tipping the object."""
+    v = scene.object.vertices_W0
+    support = set(support_contacts(v)[0])
+    up = -geo.edge_normals(v)[:, 1] > 1e-9  # unit normals: an absolute tolerance
+    return any(up[i] for i in range(len(v)) if not {i, (i + 1) % len(v)} <= support)
+
+
+def _placement_reason(sim: Simulator, tried, regions) -> str:
+    """How lifting from the placements ended (:func:`_stuck_reason`'s first part)."""
     if not tried:
         why = (
             "no tipping placement: no fingertip placement reaches a tippability region and "

@@ -318,6 +318,7 @@ def test_a_tippable_object_without_placement_is_stuck_with_the_reason():
     assert plan.status == "stuck"
     assert plan.message.startswith("no tipping placement")
     assert "at most 0.02 above the support, below the fingers' thickness, 0.05" in plan.message
+    assert "no face but the supporting edge faces down" not in plan.message  # it overhangs
 
 
 def test_stuck_lifting_says_how_it_left_the_object():
@@ -384,6 +385,18 @@ def test_pivot_arm_is_the_power_of_the_push_in_the_held_motion():
         assert arm == pytest.approx(_held_twist_push(state, region, hold), abs=1e-9)
         arms.append(arm)
     assert arms == sorted(arms, reverse=True)
+
+
+def test_a_stuck_object_without_a_face_turned_down_is_said_to_need_a_raised_corner():
+    # SMALL_TRIANGLE's apex lies above its base: both sides face up, and only its base, on
+    # the support, faces down. An obtuse triangle's overhanging side faces down.
+    plan = planning.plan_grasp(_scene_with_object(SMALL_TRIANGLE), explore_moves=0)
+    assert plan.status == "stuck"
+    assert "(no face but the supporting edge faces down: only a fingertip under a raised" in (
+        plan.message
+    )
+    obtuse = planning.grasp._faces_down(_scene_with_object([[-0.1, 0.0], [0.1, 0.0], [0.2, 0.2]]))
+    assert obtuse and not planning.grasp._faces_down(_scene_with_object(SMALL_TRIANGLE))
 
 
 @pytest.mark.xfail(
