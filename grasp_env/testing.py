@@ -132,6 +132,7 @@ class Check:
     residual: float = 0.0  # equilibrium residual / weight
     descent: float = 0.0  # minus gravity's distance from the wrenches' cone / weight
     min_force: float = math.inf
+    wedged: bool = False  # held only at second order (:func:`wedged`)
     violations: list[str] = field(default_factory=list)
 
 
@@ -171,7 +172,8 @@ def check_state(
     P, N, C = _check_contacts(out, scene, obj, bodies, contacts, tol, limit)
     _check_listed(out, obj, bodies, depths, contacts, limit)
     if all(not v.startswith("nan") for v in out.violations):
-        _check_equilibrium(out, scene, object_pose[:2], P, N, C, descent, tol)
+        kinds = [_get(c, "kind") for c in contacts]
+        _check_equilibrium(out, scene, object_pose[:2], P, N, C, kinds, descent, tol)
     return out
 
 
@@ -284,12 +286,12 @@ def _check_listed(out: Check, obj, bodies: dict, depths: dict, contacts: list, l
                 bad.append(f"unlisted: {name} vertex {p.tolist()} touches the object")
 
 
-def free_rows(V: np.ndarray, eta: float) -> np.ndarray:
-    """Rows ``V`` (twists as ``(v_x, v_y, size omega)``) with the directions free to
-    tolerance taken out: a pair of rows whose second singular value, or a triple whose third,
-    is at most ``eta`` is dependent along that singular vector; sets whose vectors agree to
-    1e-6 rad share one dependence, whose direction is that of all their rows together, and
-    each of its rows is projected onto the complement of its dependences' directions."""
+def dependences(V: np.ndarray, eta: float) -> list[tuple[np.ndarray, set[int]]]:
+    """The dependences to tolerance of rows ``V`` (twists as ``(v_x, v_y, size omega)``),
+    as ``(direction, rows)``: a pair of rows whose second singular value, or a triple whose
+    third, is at most ``eta`` is dependent along that singular vector; sets whose vectors
+    agree to 1e-6 rad share one dependence, whose direction is that of all their rows
+    together."""
 
     def telling(rows: list[int]) -> tuple[float, np.ndarray]:
         k = min(len(rows), 3) - 1  # a pair's third singular value is always zero
@@ -307,13 +309,20 @@ def free_rows(V: np.ndarray, eta: float) -> np.ndarray:
                 break
         else:
             groups.append((z, set(subset)))
+    return [(telling(sorted(rows))[1], rows) for _, rows in groups]
+
+
+def free_rows(V: np.ndarray, eta: float) -> np.ndarray:
+    """Rows ``V`` with the directions free to tolerance (:func:`dependences`) taken out:
+    each row of a dependence is projected onto the complement of its dependences'
+    directions."""
+    groups = dependences(V, eta)
     out = V.copy()
     for i in range(len(V)):
         basis: list[np.ndarray] = []
-        for _, rows in groups:
+        for z, rows in groups:
             if i not in rows:
                 continue
-            z = telling(sorted(rows))[1]
             z = z - sum((z @ u) * u for u in basis)
             if np.linalg.norm(z) > 1e-6 and len(basis) < 2:
                 basis.append(z / np.linalg.norm(z))
@@ -322,33 +331,141 @@ def free_rows(V: np.ndarray, eta: float) -> np.ndarray:
     return out
 
 
-def _check_equilibrium(out: Check, scene: Any, com, P, N, C, descent: bool, tol: float) -> None:
+def gap_hessians(P: np.ndarray, N: np.ndarray, kinds: list[str], com, size: float) -> np.ndarray:
+    """Second derivatives (m, 3, 3) of the contacts' gaps in the pose ``(x, y, theta)``,
+    in twists as displacements ``(v_x, v_y, size omega)`` and times ``size`` (unit-free).
+
+    Edge contact (object vertex ``x + R(theta) a`` on a hand edge or the support, inward
+    normal ``n`` fixed): ``phi = n . (x + R a - A)``, whose only second derivative is
+    ``d2/dtheta2 = -n . R a``. Tip contact (hand vertex ``T`` on the object edge of outward
+    normal ``R m`` through ``x + R e``; ``n = -R m``): ``phi = (R m) . (T - x) - m . e``, so
+    ``d2/dx dtheta = -R' m = J n`` (``J`` the quarter turn) and ``d2/dtheta2 = -(R m) . (T -
+    x) = n . (T - x)``."""
+    H = np.zeros((len(P), 3, 3))
+    for i, (p, n, kind) in enumerate(zip(P, N, kinds, strict=True)):
+        r = p - com
+        if kind == "tip":
+            H[i, 0, 2] = H[i, 2, 0] = -n[1] / size
+            H[i, 1, 2] = H[i, 2, 1] = n[0] / size
+            H[i, 2, 2] = (n @ r) / size**2
+        else:
+            H[i, 2, 2] = -(n @ r) / size**2
+    return H * size
+
+
+def self_stresses(V: np.ndarray, groups: list, eta: float) -> list[np.ndarray]:
+    """The non-negative self-stresses ``mu`` (``mu @ V = 0``, summing to 1) of pairs and
+    triples of one dependence that are minimal (no dependent pair inside a triple); only
+    these can block a first-order motion at second order (a self-stress spanning all three
+    twist directions leaves no motion at all)."""
+    out: list[np.ndarray] = []
+    for _, rows in groups:
+        for k in (2, 3):
+            for sub in combinations(sorted(rows), k):
+                A = V[list(sub)].T
+                _, sv, vt = np.linalg.svd(A)
+                if sv[-1] > eta * sv[0] or (k == 3 and sv[-2] <= eta * sv[0]):
+                    continue
+                mu = vt[-1] * np.sign(vt[-1].sum())
+                if mu.min() <= eta * mu.max():
+                    continue  # not a non-negative minimal self-stress
+                full = np.zeros(len(V))
+                full[list(sub)] = mu / mu.sum()
+                if not any(np.array_equal(full, m) for m in out):
+                    out.append(full)
+    return out
+
+
+def wedged(V: np.ndarray, groups: list, H: np.ndarray, eta: float, eps: float) -> bool:
+    """Whether every first-order descent of rows ``V`` (free directions taken out) steeper
+    than ``eps`` (``d`` unit, ``V d >= 0``, ``-d_y > eps``) is blocked at second order:
+    some non-negative self-stress ``mu`` (:func:`self_stresses`) has ``mu . kappa(d) < -2
+    eta`` (``kappa_i = d' H_i d``: over the object's size the gaps weighted by ``mu`` would
+    close by more than the tolerance, so no second-order correction keeps them open).
+
+    Every admissible ``d`` is tight on the self-stresses' rows, so ``d`` lies in their null
+    space; in it the descents form a ray or an arc, on which the worst ``d`` is an end of
+    the arc, an eigenvector of one ``mu``'s quadratic form or a direction where two of them
+    are equal (numpy's eigendecomposition)."""
+    stresses = self_stresses(V, groups, eta)
+    if not stresses:
+        return False
+    rows = sorted({int(i) for mu in stresses for i in np.flatnonzero(mu)})
+    _, sv, vt = np.linalg.svd(V[rows])
+    basis = vt[int(np.sum(sv > eta * sv[0])) :]  # the null space of those rows
+    others = V[[i for i in range(len(V)) if i not in rows]] @ basis.T
+    down = -basis[:, 1]
+    if len(basis) == 0:
+        return True
+    forms = [basis @ np.einsum("i,ijk->jk", mu, H) @ basis.T + 2 * eta * np.eye(len(basis))
+             for mu in stresses]  # fmt: skip
+    if len(basis) == 1:
+        candidates = [np.array([1.0]), np.array([-1.0])]
+    else:
+        candidates = []
+        for c in others[np.linalg.norm(others, axis=1) > eta]:
+            candidates += [np.array([-c[1], c[0]]), np.array([c[1], -c[0]])]
+        rho = float(np.linalg.norm(down))
+        if rho > eps:  # where -d_y = eps on the circle
+            u, t = down / rho, np.array([-down[1], down[0]]) / rho
+            along = math.sqrt(1.0 - (eps / rho) ** 2)
+            candidates += [eps / rho * u + along * t, eps / rho * u - along * t]
+        for j, F in enumerate(forms):
+            candidates += list(np.linalg.eigh(F)[1].T)
+            for G in forms[j + 1 :]:
+                lam, vec = np.linalg.eigh(F - G)
+                if lam[0] * lam[1] < 0:  # isotropic directions of F - G
+                    a, b = math.sqrt(-lam[0]), math.sqrt(lam[1])
+                    candidates += [b * vec[:, 0] + a * vec[:, 1], b * vec[:, 0] - a * vec[:, 1]]
+        candidates += [-c for c in candidates]
+    for u in candidates:
+        u = u / np.linalg.norm(u)
+        if u @ down < eps - 1e-12 or np.any(others @ u < -1e-12):
+            continue  # not a descent
+        if min(u @ F @ u for F in forms) >= 0.0:
+            return False  # not blocked
+    return True
+
+
+def _check_equilibrium(out: Check, scene: Any, com, P, N, C, kinds, descent: bool, tol) -> None:
     """``sum c_i n_i + m g = 0`` with the moment about the centre of mass, and (``descent``)
     no admissible descent: gravity within :data:`EQ_RTOL` of the cone of the contact
     wrenches (free directions taken out, :func:`free_rows`), by non-negative least squares
     in units of the weight. Its distance from the cone is minus the optimum of ``min g . v
-    s.t. V v >= 0, |v| <= 1``, the steepest admissible descent."""
+    s.t. V v >= 0, |v| <= 1``, the steepest admissible descent. An object whose every
+    descent is blocked at second order (:func:`wedged`) is held where it is by forces the
+    first-order balance does not fix: its listed forces must be the closest to balancing it
+    (the residual at most gravity's distance from the cone)."""
     bad = out.violations
     W = scene.object_weight
     size = float(np.linalg.norm(scene.object.vertices_B, axis=1).max())
     moments = np.array([cross(pi - com, ni) for pi, ni in zip(P, N, strict=True)])
     # the wrenches, with the directions free to tolerance taken out: dependent contacts
     # exert no force along them, and their forces balance the object without it
-    V = free_rows(np.column_stack([N, moments / size]), tol / size) if len(C) else np.zeros((0, 3))
+    raw = np.column_stack([N, moments / size]) if len(C) else np.zeros((0, 3))
+    groups = dependences(raw, tol / size)
+    V = free_rows(raw, tol / size)
     residual = C @ V - np.array([0.0, W, 0.0])
     out.residual = math.hypot(*residual) / W
     terms = float(C @ (1.0 + np.abs(moments) / size)) / W if len(C) else 0.0
-    if not out.residual <= EQ_RTOL + TERM_ROUNDING * terms:
+    limit = EQ_RTOL + TERM_ROUNDING * terms
+    if len(C):
+        lam, dist = nnls(V.T, np.array([0.0, 1.0, 0.0]))
+        allowed = EQ_RTOL + TERM_ROUNDING * float(lam @ np.linalg.norm(V, axis=1))
+        if dist > allowed:
+            H = gap_hessians(P, N, kinds, com, size)
+            out.wedged = wedged(V, groups, H, tol / size, allowed)
+        if out.wedged:
+            limit += float(dist)
+    if not out.residual <= limit:
         bad.append(f"equilibrium: residual {out.residual:.3e} x weight")
     if not descent:
         return
     if not len(C):
         bad.append("equilibrium: no contacts (nothing holds the object)")
         return
-    lam, dist = nnls(V.T, np.array([0.0, 1.0, 0.0]))
     out.descent = -float(dist)
-    allowed = EQ_RTOL + TERM_ROUNDING * float(lam @ np.linalg.norm(V, axis=1))
-    if dist > allowed:
+    if dist > allowed and not out.wedged:
         way = np.array([0.0, -1.0, 0.0]) + V.T @ lam  # minus the residual: the way down
         bad.append(
             f"equilibrium: admissible descent: gravity {dist:.3e} W from the contacts' cone, "

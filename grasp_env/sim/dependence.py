@@ -39,19 +39,33 @@ def free_rows(model, V: np.ndarray) -> np.ndarray:
     farthest vertex, a pair of rows whose second singular value, or a triple whose third,
     is at most ``eta = tol / size`` is dependent to tolerance along that singular vector
     ``z``: moving the object by its own size along ``z`` changes none of their gaps by more
-    than ``tol``. Sets whose directions agree (to :data:`SAME_DIRECTION`) share one
-    dependence: its direction is taken from all their rows at once (the singular vector of
-    their union), so that every row of it is projected along the very same direction and
-    the projected rows are exactly dependent, to rounding. Each such row is projected onto
-    the complement of its dependences' directions; the other rows are kept as they are (the
-    support under an object pinched between parallel faces still holds it up)."""
-    m = V.shape[0]
-    if m < 2:
+    than ``tol`` (:func:`dependences`). Each row of a dependence is projected onto the
+    complement of its dependences' directions (:func:`project`); the other rows are kept as
+    they are (the support under an object pinched between parallel faces still holds it
+    up)."""
+    if V.shape[0] < 2:
         return V
-    eta = model.tol / model.size
     Vs = V.copy()
-    for i in range(m):
+    for i in range(V.shape[0]):
         Vs[i, 2] /= model.size
+    directions, members = dependences(Vs, model.tol / model.size)
+    if directions.shape[0] == 0:
+        return V
+    out = project(Vs, directions, members)
+    for i in range(V.shape[0]):
+        out[i, 2] *= model.size
+    return out
+
+
+@njit(cache=CACHE)
+def dependences(Vs: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray]:
+    """The dependences to tolerance of rows ``Vs`` (twists as displacements ``d``): their
+    directions (g, 3) and rows (g, m). Sets whose directions agree (to
+    :data:`SAME_DIRECTION`) share one dependence: its direction is taken from all their rows
+    at once (the singular vector of their union), so that every row of it is projected
+    along the very same direction and the projected rows are exactly dependent, to
+    rounding."""
+    m = Vs.shape[0]
     groups = np.zeros((0, 3))  # a direction of each dependence
     members = np.zeros((0, m), dtype=np.bool_)  # the rows of each dependence
     for i in range(m):
@@ -69,18 +83,23 @@ def free_rows(model, V: np.ndarray) -> np.ndarray:
                 # |det| = s1 s2 s3 <= |V_S|_F^2 s3 / 2
                 if abs(det) <= 0.5 * (_norm(a) ** 2 + _norm(b) ** 2 + _norm(c) ** 2) * eta:
                     groups, members = _join(Vs, np.array([i, j, k]), eta, groups, members)
-    if groups.shape[0] == 0:
-        return V
     for g in range(groups.shape[0]):
         groups[g] = _smallest(Vs[members[g]].copy())[1]  # from all the rows at once
+    return groups, members
+
+
+@njit(cache=CACHE)
+def project(Vs: np.ndarray, directions: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """``Vs`` with each row of a dependence projected onto the complement of its
+    dependences' directions (at most :data:`MAX_FREE`)."""
     out = Vs.copy()
-    for i in range(m):
+    for i in range(Vs.shape[0]):
         basis = np.zeros((MAX_FREE, 3))
         count = 0
-        for g in range(groups.shape[0]):
+        for g in range(directions.shape[0]):
             if not members[g, i] or count == MAX_FREE:
                 continue
-            z = groups[g].copy()
+            z = directions[g].copy()
             for t in range(count):
                 z -= (z[0] * basis[t, 0] + z[1] * basis[t, 1] + z[2] * basis[t, 2]) * basis[t]
             size = _norm(z)
@@ -91,8 +110,6 @@ def free_rows(model, V: np.ndarray) -> np.ndarray:
             along = out[i, 0] * basis[t, 0] + out[i, 1] * basis[t, 1] + out[i, 2] * basis[t, 2]
             for j in range(3):
                 out[i, j] -= along * basis[t, j]
-    for i in range(m):
-        out[i, 2] *= model.size
     return out
 
 

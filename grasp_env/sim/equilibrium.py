@@ -17,6 +17,7 @@ from numba import njit
 
 from grasp_env.compiled import CACHE
 from grasp_env.sim import contact_sets
+from grasp_env.sim.curvature import wedged
 from grasp_env.sim.dependence import free_rows
 from grasp_env.sim.motion import motion_lp
 from grasp_env.sim.placement import contact_rows
@@ -46,16 +47,40 @@ def held(
     balance it to ``ftol`` plus ``rounding`` times the size of their terms (0, or
     :data:`ROUNDING` for a state the hand stops at, whose forces may be large), with the
     directions free to tolerance taken out (:func:`~grasp_env.sim.dependence.free_rows`:
-    gravity along one is not balanced). At a vertex-vertex touch the object may move along
-    either candidate's edge: it is held only if every choice of candidates holds it."""
+    gravity along one is not balanced), or every way down left is blocked at second order
+    (:func:`grasp_env.sim.curvature.wedged`). At a vertex-vertex touch the object may move
+    along either candidate's edge: it is held only if every choice of candidates holds it."""
     if keys.shape[0] == 0:
         return False
     for choice in contact_sets.choices(model, world, keys):
-        W = wrench_rows(model, world, com, choice).T.copy()
-        lam, res = dense.nnls(W, model.gravity)
-        if res > ftol + rounding * _term_size(W, lam):
+        ok, bound = _balanced(model, world, com, choice, ftol, rounding)
+        if not ok and not wedged(model, world, com, choice, bound / model.weight):
             return False
     return True
+
+
+@njit(cache=CACHE)
+def held_at_first_order(
+    model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, rounding: float
+) -> bool:
+    """:func:`held` without the wedge: forces balance the object (a wedged object is held
+    while the hand keeps it so, but the hand may release it)."""
+    if keys.shape[0] == 0:
+        return False
+    for choice in contact_sets.choices(model, world, keys):
+        if not _balanced(model, world, com, choice, ftol, rounding)[0]:
+            return False
+    return True
+
+
+@njit(cache=CACHE)
+def _balanced(model, world, com, keys, ftol: float, rounding: float) -> tuple[bool, float]:
+    """Whether non-negative forces of ``keys`` balance the object to ``ftol`` plus
+    ``rounding`` times the size of their terms, and that bound."""
+    W = wrench_rows(model, world, com, keys).T.copy()
+    lam, res = dense.nnls(W, model.gravity)
+    bound = ftol + rounding * _term_size(W, lam)
+    return res <= bound, bound
 
 
 @njit(cache=CACHE)
@@ -89,8 +114,15 @@ def rest_forces(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> 
     # through its primal (min W v_y s.t. V v >= -1) by the same motion LP as the steps.
     status, _, lam, _ = motion_lp(model, V, -np.ones(m))
     if status != OPTIMAL:
-        # held only to within the fall's tolerance: the closest non-negative forces
-        return dense.nnls(W, g)[0]
+        lam, res = dense.nnls(W, g)
+        if res <= model.ftol:
+            return lam  # held only to within the fall's tolerance: the closest forces
+        # wedged (the rest is carried by the contacts' curvature): the closest forces in the
+        # wrenches of displacements d = (v_x, v_y, size omega), as the wedge is measured
+        Wd = W.copy()
+        for j in range(m):
+            Wd[2, j] *= model.length / model.size
+        return dense.nnls(Wd, g)[0]
     return np.maximum(lam, 0.0)
 
 

@@ -228,6 +228,14 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
         if not have_best or (
             not (best_event and np.any(best != q)) and best[1] > q[1] - 1e-12 * model.size
         ):
+            # No step lowers the object: a nearly level way down to a rest on the one or two
+            # contacts it keeps closed (a flat side along a finger and a fingertip holding
+            # the object to slightly more than the tolerance) ends in that rest.
+            if keys.shape[0] > 2:
+                q_rest, found = cradle(model, q, h, descent(model, world, q, keys)[1], solves)
+                if found:
+                    q, moved = q_rest, True
+                    continue
             events.append((FALL_END, s, keys))  # no admissible descent lowers the object
             return q, moved
         q, moved = best, True

@@ -31,7 +31,7 @@ from numba import njit
 from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import contact_sets, motion
-from grasp_env.sim.equilibrium import ROUNDING, determined, held
+from grasp_env.sim.equilibrium import ROUNDING, determined, held, held_at_first_order
 from grasp_env.sim.events import (
     EDGE_TO_TIP,
     JAM,
@@ -207,6 +207,18 @@ def _cannot_move(model, ms: MoveState, h, h0, dh, s_end, events, solves):
         # the boundary of equilibrium it falls.
         s_new, q_new, found = nudge_and_fall(
             model, ms.q, ms.s, here.losing_E, here.losing_v, h0, dh, s_end, events, solves
+        )
+        if found:
+            return _moved(ms, q_new, s_new), False
+    world = place(model, ms.q, h)
+    keys = touching(model, world, contact_sets.empty())
+    if held(model, world, ms.q[:2], keys, model.ftol, ROUNDING) and not held_at_first_order(
+        model, world, ms.q[:2], keys, model.ftol, ROUNDING
+    ):
+        # Wedged at second order: the hand may still move on where it leaves the object
+        # where it is, and release it (a fall) past where the contacts stop holding it.
+        s_new, q_new, found = nudge_and_fall(
+            model, ms.q, ms.s, contact_sets.empty(), np.zeros(3), h0, dh, s_end, events, solves
         )
         if found:
             return _moved(ms, q_new, s_new), False
