@@ -83,6 +83,7 @@ def new_record(index: int) -> dict[str, Any]:
         "residual": 0.0,
         "gap": 0.0,
         "descent": 0.0,
+        "wedged": 0,
         "examples": [],
         "time": 0.0,
     }
@@ -149,9 +150,12 @@ def run_env(env, rng: np.random.Generator, steps: int, rec: dict[str, Any]) -> N
         if not np.all(np.isfinite(obs)) or not space.contains(obs):
             chk.violations.append(f"nan: observation outside its space: {obs.tolist()}")
         rec["penetration"] = max(rec["penetration"], chk.penetration)
-        rec["residual"] = max(rec["residual"], chk.residual)
         rec["gap"] = max(rec["gap"], chk.gap)
-        rec["descent"] = min(rec["descent"], chk.descent)
+        if chk.wedged:  # held at second order: its first-order residual is a blocked descent
+            rec["wedged"] += 1
+        else:
+            rec["residual"] = max(rec["residual"], chk.residual)
+            rec["descent"] = min(rec["descent"], chk.descent)
         if chk.violations:
             rec["violating_steps"] += 1
             rec["nan"] += any(v.startswith("nan") for v in chk.violations)
@@ -228,6 +232,7 @@ def summarise(records: list[dict]) -> dict[str, Any]:
     out["residual"] = max(r["residual"] for r in records)
     out["gap"] = max(r["gap"] for r in records)
     out["descent"] = min(r["descent"] for r in records)
+    out["wedged"] = sum(r.get("wedged", 0) for r in records)
     out["cpu_time"] = sum(r["time"] for r in records)
     out["kinds"] = {k: sum(r.get("kind") == k for r in records) for k in SCENE_KINDS}
     out["bad_shapes"] = [
@@ -272,6 +277,8 @@ def write_report(path: Path, args: argparse.Namespace, s: dict, wall: float, rec
         f"| worst listed-contact abs(gap) (x palm width) | {s['gap']:.2e} |",
         f"| worst equilibrium residual (x weight; limit {EQ_RTOL:g}) | {s['residual']:.2e} |",
         f"| most negative descent-LP optimum (x weight) | {s['descent']:.2e} |",
+        f"| steps ending wedged (every descent blocked at second order; not in the two rows "
+        f"above) | {s['wedged']} |",
         f"| env steps/s per process | {rate:.1f} |",
         f"| env steps/s, all workers (wall time of this run {wall:.0f} s) | "
         f"{s['steps'] / wall if wall > 1 else math.nan:.1f} |",
