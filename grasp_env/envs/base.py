@@ -89,8 +89,16 @@ class GraspEnvBase(gym.Env):
     def scene(self) -> Scene | None:
         """The :class:`grasp_env.Scene` of the current episode (None before the first
         :meth:`reset`): one of :attr:`scenes`, the ``options["scene"]`` of the reset, or the
-        random shape drawn with ``shape_randomizer``."""
+        random shape drawn with ``shape_randomizer``; with ``uncertainty``, perturbed."""
         return None if self._episode is None else self._episode.state.scene
+
+    @property
+    def nominal_scene(self) -> Scene | None:
+        """The :class:`grasp_env.Scene` the policy and the planner are told (None before the
+        first :meth:`reset`): :attr:`scene` itself, or with ``uncertainty`` the nominal scene
+        whose perturbation :attr:`scene` simulates. The observation's shape features are
+        its object's."""
+        return None if self._episode is None else self._episode.nominal.scene
 
     # ------------------------------------------------------------------ actions and episodes
     def _check_action(self, action: Any) -> list[float]:
@@ -98,13 +106,16 @@ class GraspEnvBase(gym.Env):
         is finite real numbers of the action space's shape."""
         return action_values(action, self.action_space.shape[0])
 
-    def _new_episode(self, sim: Simulator, state: State) -> Episode:
-        """The episode of ``sim`` starting at ``state``: its constants (the action's steps and
-        the palm workspace among them) and analysis; changes nothing of the env."""
+    def _new_episode(
+        self, sim: Simulator, state: State, nominal: Simulator | None = None
+    ) -> Episode:
+        """The episode of ``sim`` starting at ``state``, observed with the shape of
+        ``nominal``'s object (default ``sim``'s): its constants (the action's steps and the
+        palm workspace among them) and analysis; changes nothing of the env."""
         consts = episode_constants(
             state.scene, state, self.max_finger_step, self.max_palm_step, sim.model.rho
         )
-        return Episode(sim, state, consts, self._settings, len(self._obs_low))
+        return Episode(sim, state, consts, self._settings, len(self._obs_low), nominal)
 
     def simulate_action(self, state: State, action: Any) -> State:
         """The state ``action`` leads to from ``state``, without changing the env.

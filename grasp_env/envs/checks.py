@@ -15,6 +15,7 @@ from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import LENGTH_RANGE, Scene
 from grasp_env.core.scene_loading import load_scene
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup
+from grasp_env.envs.uncertainty import MAX_UNCERTAINTY, UNCERTAINTY_KEYS
 from grasp_env.kernel.observation import PALM_THETA_MAX, PALM_X_RANGE, PALM_Y_MAX
 
 #: Largest aspect ratio of the shape randomizer: a 1:100 shape is already a thin plate.
@@ -105,6 +106,27 @@ def shape_ranges(value: Any, max_vertices: int) -> dict[str, tuple[float, float]
             )
         out[key] = (lo, hi)
     return out
+
+
+def uncertainty_sds(value: Any) -> dict[str, float]:
+    """``uncertainty`` as standard deviations by :data:`grasp_env.envs.uncertainty.
+    UNCERTAINTY_KEYS` (a number is the vertices'; a dict gives any of them, the rest 0), each
+    in [0, ``MAX_UNCERTAINTY``]."""
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - set(UNCERTAINTY_KEYS), key=str)
+        if unknown:
+            raise ValueError(
+                f"uncertainty: unknown key(s) {unknown}; allowed: {list(UNCERTAINTY_KEYS)}"
+            )
+        raw = {key: value.get(key, 0.0) for key in UNCERTAINTY_KEYS}
+        names = {key: f"uncertainty[{key!r}]" for key in UNCERTAINTY_KEYS}
+    else:
+        raw = {key: value if key == "vertices" else 0.0 for key in UNCERTAINTY_KEYS}
+        names = dict.fromkeys(UNCERTAINTY_KEYS, "uncertainty")
+    return {
+        key: number(raw[key], names[key], 0.0, MAX_UNCERTAINTY, lo_open=False)
+        for key in UNCERTAINTY_KEYS
+    }
 
 
 def action_values(action: Any, size: int) -> list[float]:

@@ -90,19 +90,22 @@ def state_arrays(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
 
 
 class Episode:
-    """One episode: its simulator and scene, the kernel's arrays (``consts``, the state ``q``,
-    ``h``, ``keys``, ``rows``, the analysis ``an``, the episode so far ``ep``, the observation
-    buffer ``obs``) and the current :class:`grasp_env.State`."""
+    """One episode: its simulator and scene, the nominal simulator whose object the
+    observation shows (``sim`` itself unless the env's ``uncertainty`` perturbs the simulated
+    object), the kernel's arrays (``consts``, the state ``q``, ``h``, ``keys``, ``rows``, the
+    analysis ``an``, the episode so far ``ep``, the observation buffer ``obs``) and the
+    current :class:`grasp_env.State`."""
 
-    __slots__ = ("an", "consts", "ep", "h", "keys", "obs", "q", "rows", "sim", "state")
+    __slots__ = ("an", "consts", "ep", "h", "keys", "nominal", "obs", "q", "rows", "sim", "state")
 
     def __init__(self, sim: Simulator, state: State, consts: np.ndarray, settings: np.ndarray,
-                 obs_size: int) -> None:  # fmt: skip
+                 obs_size: int, nominal: Simulator | None = None) -> None:  # fmt: skip
         """The episode starting at ``state``: its analysis (the reference solver deciding a
         grip the compiled one cannot, which may raise ``SolverError``), the lift potential
-        and the observation buffer's vertex block (object frame, palm widths, padded, with
-        its mask)."""
+        and the observation buffer's vertex block (the nominal object's, object frame, palm
+        widths, padded, with its mask)."""
         self.sim, self.state, self.consts = sim, state, consts
+        self.nominal = sim if nominal is None else nominal
         self.q, self.h, self.keys, self.rows = state_arrays(state)
         self.an = np.zeros(kernel.ANALYSIS)
         if not kernel.analyse(consts, settings, self.q, self.h, self.keys, self.rows, self.an):
@@ -113,7 +116,7 @@ class Episode:
         lift = settings[kernel.S_WEIGHTS + kernel.REWARD_TERMS.index("lift")]
         self.ep[kernel.E_PHI] = lift * ((self.q[1] - consts[kernel.K_Y0]) / w)
         self.obs = np.zeros(obs_size, dtype=np.float32)
-        v = state.scene.object.vertices_B / w
+        v = self.nominal.scene.object.vertices_B / w
         n = (int(settings[kernel.S_CONTACTS_AT]) - POSE_ENTRIES) // 3
         self.obs[POSE_ENTRIES : POSE_ENTRIES + v.size] = v.ravel()
         self.obs[POSE_ENTRIES + 2 * n : POSE_ENTRIES + 2 * n + len(v)] = 1.0
@@ -124,9 +127,21 @@ class Episode:
 
     def observation(self, settings: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
         """The observation of the current state."""
+        return self.observe(self.q, self.h, self.obs, settings, low, high)
+
+    def observe(self, q, h, obs, settings, low, high) -> np.ndarray:
+        """:func:`grasp_env.kernel.step.observation` of the state ``(q, h)`` into the buffer
+        ``obs``, the hand-object distances to the nominal object at the simulated one's
+        pose."""
         return kernel.observation(
-            self.sim.compiled_model, self.consts, settings, self.q, self.h, self.obs, low, high
+            self.nominal.compiled_model, self.consts, settings, q, h, obs, low, high
         )
+
+    def shows_nominal(self, settings: np.ndarray) -> bool:
+        """Whether the kernel's step observes another object than the one the observation
+        shows: it does with ``uncertainty`` and ``hand_features`` (the hand-object
+        distances), and the step's observation is then made again by :meth:`observe`."""
+        return self.nominal is not self.sim and settings[kernel.S_HAND_FEATURES] != 0.0
 
     def step(self, action: np.ndarray, settings, low, high) -> tuple[np.ndarray, np.ndarray]:
         """Advance by ``action`` (float64): ``(observation, info)`` with ``info`` the kernel's
@@ -160,6 +175,8 @@ class Episode:
                 self.obs, low, high, a, True, info,
             )  # fmt: skip
         self.q, self.h, self.keys, self.rows, self.state = q, h, keys, rows, new
+        if self.shows_nominal(settings):
+            seen = self.observation(settings, low, high)
         return seen, info
 
     def friction_jams(self, arrays: tuple, action: np.ndarray, settings, mu: float) -> bool:

@@ -33,9 +33,11 @@ from grasp_env.envs.checks import (
     reset_options,
     shape_problem,
     shape_ranges,
+    uncertainty_sds,
 )
 from grasp_env.envs.episode import REWARD_KEYS, env_settings
 from grasp_env.envs.shapes import hand_setup, random_shape_scene
+from grasp_env.envs.uncertainty import perturbed_scene
 from grasp_env.errors import ComputationError
 from grasp_env.kernel import step as kernel
 from grasp_env.kernel.observation import observation_bounds
@@ -266,6 +268,19 @@ class FrictionlessGraspEnv(GraspEnvBase):
       ids: 200).
     * ``friction``: a Coulomb coefficient ``mu`` in [0, 1e6] at every contact that stops a
       step it can jam (0: none, the paper's frictionless task); see Episode End.
+    * ``uncertainty``: the object's shape is not known exactly (0: it is, the default). A
+      number ``sigma`` in [0, 1]: at every reset the simulated object is the nominal one (the
+      scene's, or the random shape drawn) with each vertex moved by independent normal noise
+      of standard deviation ``sigma`` palm widths, the vertices on the support along it only;
+      a dict ``{"vertices": sigma, "mass": rel_sd}`` also scales the mass by ``1 + rel_sd *
+      z``, ``z`` standard normal (a centre of mass off the centroid does not fit the
+      simulator's uniform-density objects). A draw is redrawn, up to 100 times, unless the
+      object stays strictly convex, at rest on the same edge (its centroid over it) and clear
+      of the hand's set-up; a scene none of whose draws does so raises ``ValueError``. The
+      draws come from the env's generator (a seed reproduces them; none at 0). The
+      observation's vertex block and hand-object distances show the nominal object (at the
+      simulated object's pose); contacts, forces, poses, rewards and the start are the
+      simulated object's (docs/uncertainty.md).
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
       ``render_height`` (640, 480; 16 to 16384 pixels).
 
@@ -278,7 +293,9 @@ class FrictionlessGraspEnv(GraspEnvBase):
     * :attr:`state`: the current :class:`grasp_env.State` (immutable: hand, object pose,
       contacts and forces, events);
     * :attr:`simulator`: the episode's :class:`grasp_env.Simulator`;
-    * :attr:`scene`: the episode's :class:`grasp_env.Scene`.
+    * :attr:`scene`: the episode's :class:`grasp_env.Scene` (the simulated one);
+    * :attr:`nominal_scene`: the scene the policy is told: :attr:`scene` itself, or with
+      ``uncertainty`` the nominal scene whose perturbation is simulated.
 
     ``env.unwrapped.simulate_action(state, action)`` returns the state an action leads to from
     any state, exactly as ``step`` computes it (same action checks and clipping), without
@@ -291,9 +308,10 @@ class FrictionlessGraspEnv(GraspEnvBase):
       closure; the spec has ``reward_threshold=10``; bundled scene names always mean the
       bundled scenes. Added since, with defaults that leave the env as it was: the
       ``"placement"`` start, ``hand_features``, ``reward_hold_weight``
-      (``info["reward_hold"]``), ``shape_pool`` and ``friction``. The time limit of 200
-      steps is the env's own (``time_limit``) since the batched env (``gymnasium.make_vec``)
-      came: episodes end as before, and ``gymnasium.make`` returns the env without wrappers.
+      (``info["reward_hold"]``), ``shape_pool``, ``friction`` and ``uncertainty``. The time
+      limit of 200 steps is the env's own (``time_limit``) since the batched env
+      (``gymnasium.make_vec``) came: episodes end as before, and ``gymnasium.make`` returns
+      the env without wrappers.
 
     Registered ids (``grasp_env.envs.ENV_KWARGS``), all with ``time_limit=200`` and
     ``reward_threshold=10`` with the default reward weights; keyword arguments of
@@ -332,6 +350,7 @@ class FrictionlessGraspEnv(GraspEnvBase):
         shape_pool: int | None = None,
         time_limit: int | None = None,
         friction: float = 0.0,
+        uncertainty: float | dict = 0.0,
         render_mode: str | None = None,
         render_width: int = 640,
         render_height: int = 480,
@@ -357,6 +376,8 @@ class FrictionlessGraspEnv(GraspEnvBase):
         )
         self.max_vertices = integer(max_vertices, "max_vertices", 3, TypeError, MAX_VERTICES)
         self.friction = number(friction, "friction", 0.0, MU_MAX, lo_open=False)
+        self.uncertainty = uncertainty_sds(uncertainty)
+        self._uncertain = any(sd > 0.0 for sd in self.uncertainty.values())
         super().__init__(
             action_size=5 if self.palm_control else 2, render_mode=render_mode,
             render_width=render_width, render_height=render_height,
@@ -368,12 +389,16 @@ class FrictionlessGraspEnv(GraspEnvBase):
         self.scenes = [self._load(spec, "scene") for spec in specs]
         self.shape_ranges = shape_ranges(shape_randomizer, self.max_vertices)
         self._shape_args = (self.shape_ranges, self._shape_problem)
+        self._perturbation_args = (self.uncertainty, self._shape_problem)
         self.shape_pool = None if shape_pool is None else integer(shape_pool, "shape_pool", 1)
         if self.shape_pool is not None and self.shape_ranges is None:
             raise ValueError(f"shape_pool={shape_pool!r} needs a shape_randomizer")
         if self.shape_ranges is not None:
             for base in self.scenes:  # fail now, not at a reset, if no shape fits a hand
                 random_shape_scene(np.random.default_rng(0), base, *self._shape_args)
+        elif self._uncertain:  # or if no perturbation of a scene is valid
+            for base in self.scenes:
+                perturbed_scene(np.random.default_rng(0), base, *self._perturbation_args)
 
         #: Simulators and start states of the bundled scenes (by index) and of the shape
         #: pool's entries (by ``(index, entry)``), made once.
@@ -410,8 +435,8 @@ class FrictionlessGraspEnv(GraspEnvBase):
             rng = _copy_generator(self.np_random) if seed is None else seeding.np_random(seed)[0]
         except gym.error.Error:
             raise ValueError(f"seed must be None or an int >= 0, got {short(seed)}") from None
-        sim, state, error = self._start(rng, opts)
-        episode = self._new_episode(sim, state)
+        sim, state, error, nominal = self._start(rng, opts)
+        episode = self._new_episode(sim, state, nominal)
 
         super().reset(seed=seed)
         self.np_random.bit_generator.state = rng.bit_generator.state  # the draws made above
@@ -427,10 +452,11 @@ class FrictionlessGraspEnv(GraspEnvBase):
 
     def _start(
         self, rng: np.random.Generator, opts: dict[str, Any]
-    ) -> tuple[Simulator, State, str | None]:
-        """The simulator, start state and pre-liftoff error of a new episode, drawn from
-        ``rng``; changes no episode state (it fills only the simulator and pre-liftoff
-        caches)."""
+    ) -> tuple[Simulator, State, str | None, Simulator]:
+        """The simulator, start state, pre-liftoff error and nominal simulator of a new
+        episode, drawn from ``rng``; changes no episode state (it fills only the simulator
+        and pre-liftoff caches). With ``uncertainty`` the simulated object is a perturbation
+        of the nominal one, and the start is made on it."""
         if "scene" in opts:
             scene = opts["scene"]
             sim, key = Simulator(scene, contact_tol=self.contact_tol), None
@@ -446,13 +472,17 @@ class FrictionlessGraspEnv(GraspEnvBase):
                 self._sims[key] = Simulator(self._scene_of(key), contact_tol=self.contact_tol)
             sim = self._sims[key] if key is not None else sim
             scene = sim.scene
+        nominal = sim
+        if self._uncertain:
+            scene = perturbed_scene(rng, nominal.scene, *self._perturbation_args)
+            sim, key = Simulator(scene, contact_tol=self.contact_tol), None
         if "palm" in opts or "fingers" in opts:
             hand = option_hand(scene, opts, self.contact_tol)
-            return sim, sim.settle(scene.object.start_pose, hand), None
+            return sim, sim.settle(scene.object.start_pose, hand), None, nominal
         state, error = self._first_state(sim, key)
         if self.start == "random":
             state = self._perturb(sim, state, rng)
-        return sim, state, error
+        return sim, state, error, nominal
 
     def _scene_of(self, key: Any) -> Scene:
         """The scene of a bundled scene's index, or of the shape pool's entry ``(index,

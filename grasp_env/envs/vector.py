@@ -211,6 +211,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
             self._counts, self._an, self._ep, self._obs, self._low, self._high, actions,
             self._seen, self._info, self._status,
         )  # fmt: skip
+        if self.envs[0]._uncertain:
+            self._show_nominal()
         errors = {}
         for i in np.flatnonzero(self._status != kernel.OK):
             episode = self._episode(i)  # Python takes the step over, as the single env does
@@ -223,6 +225,16 @@ class FrictionlessGraspVectorEnv(VectorEnv):
             self._write(i, episode)
         self._info[friction_jams, kernel.I_JAMMED] = 1.0
         return self._results(errors, friction_jams)
+
+    def _show_nominal(self) -> None:
+        """The observations of the rows the batch stepped, made again where they show another
+        object than the simulated one (as the single env's step makes them)."""
+        for i in np.flatnonzero(self._status == kernel.OK):
+            episode = self.envs[i]._episode
+            if episode.shows_nominal(self._settings):
+                self._seen[i] = episode.observe(
+                    self._q[i], self._h[i], self._obs[i], self._settings, self._low, self._high
+                )
 
     def _friction_jams(self, actions: np.ndarray) -> np.ndarray:
         """Which sub-envs' actions ask for a hand motion their friction jams (none without
