@@ -45,7 +45,8 @@ env actions, splitting increments larger than one action into several steps. Wit
 ``palm_control`` True, when that fails, it moves the palm to the whole planner's placement
 (tilted, for square, heavy_square and triangle) and lifts from there; where no placement
 lifts the object (tall_rectangle), it runs the planner's exploratory lifting with palm
-motion on the env's own step function and replays it exactly.
+motion on the env's own step function and replays it exactly. With the env's
+``uncertainty`` it plans on the nominal scene and plays the plan open loop.
 """
 
 from __future__ import annotations
@@ -74,6 +75,8 @@ from agents.provenance import git_commit, utc_now
 from grasp_env import planning
 from grasp_env.cli import HelpFormatter, out_dir_problem
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
+from grasp_env.core.state import State
+from grasp_env.envs.checks import placement_problem
 from grasp_env.errors import ComputationError
 from grasp_env.mechanics.friction import MU_MAX
 from grasp_env.simulator import Simulator
@@ -88,6 +91,9 @@ REPLAN_TOL = 1e-4
 MAX_REPLANS = 10
 #: Finger actions at most to close the fingers onto the object before exploring.
 CLOSE_STEPS = 64
+#: Finger opening (rad) a step, and steps at most, that clear the hand of the nominal object
+#: where the env's hand overlaps it (:attr:`ScriptedPolicy.open_loop`).
+OPEN_STEP, OPEN_STEPS = 0.005, 40
 #: Whole-planner plans kept (per scene) by :class:`ScriptedPolicy` with palm control.
 PLAN_CACHE_SIZE = 16
 _PLAN_CACHE: dict[tuple, planning.Plan] = {}
@@ -200,8 +206,18 @@ class ScriptedPolicy:
     motion (:mod:`grasp_env.planning.regrasp`) from the env's state on the env's own step function
     (``simulate_action``), so the env follows it exactly.
 
+    With the env's ``uncertainty`` (``env.unwrapped.nominal_scene`` is not ``.scene``) it
+    knows only the nominal object: it plans on a simulator of the nominal scene from the
+    nominal object at rest at its placement with the hand where the env's is (the fingers
+    opened where they would overlap it; where no opening clears it, the policy holds
+    still), plays the plan open loop
+    (:attr:`open_loop`: no re-plans, no planning at the re-placed hand, no exploration on
+    the env's step function, which would use the simulated object), and so fails where the
+    simulated object does not follow the nominal one's plan.
+
     It reads the env only through its public accessors (``env.unwrapped.state``,
-    ``.simulator``, ``.scene``, ``.simulate_action`` and the action settings).
+    ``.simulator``, ``.scene``, ``.nominal_scene``, ``.simulate_action`` and the action
+    settings).
 
     Args:
         env: a ``FrictionlessGraspEnv``, possibly wrapped.
@@ -213,6 +229,8 @@ class ScriptedPolicy:
     Attributes:
         on_fallback: the episode follows a re-placement or an exploratory path (replayed
             exactly past tipping bifurcations) rather than lifting from the env's placement.
+        open_loop: the episode plays a plan of the nominal scene without re-planning (the
+            env's ``uncertainty``).
     """
 
     def __init__(self, env, dq: float = 0.02, fallbacks: bool = True) -> None:
@@ -220,6 +238,7 @@ class ScriptedPolicy:
         self.dq = dq
         self.fallbacks = fallbacks
         self.on_fallback = False
+        self.open_loop = False
         self.plan: planning.Plan | None = None
         self._ready = False  # reset() has planned
         self._transit_left = -1  # waypoints left before the planned placement (-1: none)
@@ -238,21 +257,48 @@ class ScriptedPolicy:
         """
         if self.env.unwrapped.state is None:
             raise RuntimeError("reset the env (env.reset()) before ScriptedPolicy.reset()")
+        base = self.env.unwrapped
         self._replans = 0
         self._explored = False
         self.on_fallback = False
+        self.open_loop = base.nominal_scene is not base.scene
         self._transit_left = -1
         self._replan()
         self._ready = True
 
     def _replan(self, palm_moves: bool = True) -> None:
         base = self.env.unwrapped
-        sim, state = base.simulator, base.state
+        sim, state = self._model()
+        if state is None:  # nothing to plan from: hold still
+            self._use(planning.Plan(message="the hand overlaps the nominal object"), [])
+            return
         plan = self._fixed_palm_plan(sim, state)
         self._use(plan, [])
         if not plan.success and palm_moves and self.fallbacks and base.palm_control:
-            if not self._replan_with_palm(sim, state):
+            if not self._replan_with_palm(sim, state) and not self.open_loop:
                 self._explore(state)
+
+    def _model(self) -> tuple[Simulator, State | None]:
+        """The simulator and state the policy plans on: the env's, or in :attr:`open_loop`
+        a simulator of the nominal scene with its object at rest at its placement and the
+        hand where the env's is, the fingers opened by the least multiples of ``OPEN_STEP``
+        (up to ``OPEN_STEPS`` each) that clear the hand of the nominal object there; no state
+        where none does (the hand is wedged between the simulated object and the support
+        where the nominal object sticks out).
+        """
+        base = self.env.unwrapped
+        if not self.open_loop:
+            return base.simulator, base.state
+        sim = Simulator(base.nominal_scene, contact_tol=base.contact_tol)
+        pose, hand = sim.scene.object.start_pose, base.state.hand
+        low, high = sim.scene.joint_limits.T
+        for total in range(2 * OPEN_STEPS + 1):  # the least opening first
+            for k in range(max(0, total - OPEN_STEPS), min(total, OPEN_STEPS) + 1):
+                opened = hand.copy()  # finger 1 opens as q1 falls, finger 2 as q2 rises
+                opened[3:] = np.clip(hand[3:] + OPEN_STEP * np.array([-k, total - k]), low, high)
+                if placement_problem(sim.scene, pose, opened, base.contact_tol) is None:
+                    return sim, sim.settle(pose, opened)
+        return sim, None
 
     def _fixed_palm_plan(self, sim: Simulator, state) -> planning.Plan:
         """Close until both fingers touch, lift and adjust the grip, the palm where it is."""
@@ -387,13 +433,14 @@ class ScriptedPolicy:
         base = self.env.unwrapped
         if not self._chunk:
             state = base.state
-            if self._expected is not None:
+            if self._expected is not None and not self.open_loop:
                 off = np.abs(state.object_pose - self._expected).max()
                 self._expected = None
                 if off > REPLAN_TOL * base.simulator.size and self._replans < MAX_REPLANS:
                     self._replans += 1
                     self._replan()
-            if self._transit_left == 0 and self.plan is not None and self._waypoints:
+            placed = self._transit_left == 0 and self.plan is not None and self._waypoints
+            if placed and not self.open_loop:
                 self._transit_left = -1  # at the placement: lift from the env's own state
                 plan = self._fixed_palm_plan(base.simulator, state)
                 if plan.success:
