@@ -75,8 +75,10 @@ def edge_rows(
 def contact_edge_rows(scene, pose, hand, points, normals, bodies, dh):
     """:func:`edge_rows` from arrays: the object's pose (3,), the hand (5,), contact points
     and normals (n, 2), body indices (n,) and the hand velocity ``dh`` (5,)."""
-    if len(bodies) == 0:
+    size = float(np.max(np.abs(dh)))
+    if len(bodies) == 0 or size == 0.0:
         return None
+    dh = dh / size  # only the direction matters; so no magnitude overflows
     poses = kin.body_poses_W(scene, hand)
     twists = kin.body_twists_W(scene, hand, dh)
     velocities = np.zeros((len(bodies), 2))

@@ -229,6 +229,8 @@ def test_no_contact_or_no_push_never_jams() -> None:
     opening = np.array([0.0, 0.0, 0.0, -1.0, 1.0])
     assert friction.critical_friction(pinch, opening) == math.inf
     assert friction.critical_friction(pinch, -opening) == 0.0  # a head-on squeeze
+    for scale in (1e-300, 1e300):  # only the direction counts
+        assert friction.critical_friction(pinch, -opening * scale) == 0.0
     one = hand_state([[-0.2, 0.2]], [[1.0, 0.0]], ["finger1"])
     assert friction.critical_friction(one, -opening) == math.inf
 
