@@ -199,6 +199,7 @@ class Episode:
     jammed: bool = False
     error: str = ""
     friction: float = 0.0
+    uncertainty: float = 0.0
 
 
 def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extra) -> gym.Env:
@@ -214,17 +215,20 @@ def make_env(spec: PolicySpec, suite_kwargs: dict, max_steps: int | None, **extr
 
 def run_episode(
     spec: PolicySpec, suite: str, scene: str, seed: int, max_steps: int | None, frames=None,
-    friction: float = 0.0,
+    friction: float = 0.0, uncertainty: float = 0.0,
 ) -> Episode:  # fmt: skip
     """Run one episode to its end, with Coulomb ``friction`` at every contact (the env's
-    ``friction``); appends rendered frames to ``frames`` if given."""
+    ``friction``) and the object's vertices perturbed by ``uncertainty`` palm widths (the
+    env's ``uncertainty``); appends rendered frames to ``frames`` if given."""
     suite_kwargs = SHAPE_SUITES.get(suite, {"scene": scene})
     extra: dict = {"friction": friction} if friction else {}
+    if uncertainty:
+        extra["uncertainty"] = uncertainty
     if frames is not None:
         extra |= {"render_mode": "rgb_array", "render_width": GIF_SIZE[0]}
         extra["render_height"] = GIF_SIZE[1]
     env = make_env(spec, suite_kwargs, max_steps, **extra)
-    ep = Episode(suite, scene, spec.name, seed, friction=friction)
+    ep = Episode(suite, scene, spec.name, seed, friction=friction, uncertainty=uncertainty)
     try:
         reset, act = make_policy(spec, env)
         obs, info = env.reset(seed=seed)

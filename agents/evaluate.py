@@ -3,6 +3,7 @@
     python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
         [--out DIR] [--workers 2] [--results-page docs/results.md]
         [--friction 0,0.1,0.2,0.3,0.4 [--friction-page docs/friction_results.md]]
+        [--uncertainty 0,0.005,0.01,0.02 [--uncertainty-page docs/uncertainty_results.md]]
 
 Suites: ``bundled`` (every bundled scene from its start, ``--bundled-episodes`` seeds each),
 ``heldout`` (``--episodes`` random shapes drawn with ``reset(seed=HELDOUT_SEED + k)``, seeds
@@ -19,7 +20,10 @@ tables with the date, the commit and the command), which is written nowhere else
 ``--friction`` plays every episode at each listed Coulomb coefficient (the env's
 ``friction``: a step friction can resist jams); the summary has a row per coefficient and
 ``friction.png`` plots success against it, and ``--friction-page PATH`` writes that table
-and plot as a page (:mod:`agents.friction_page`, the plot into ``images/`` beside it). Every row
+and plot as a page (:mod:`agents.sweep_page`, the plot into ``images/`` beside it).
+``--uncertainty`` likewise plays every episode at each listed standard deviation of the
+object's vertices (the env's ``uncertainty``, palm widths: the same seeds give every policy
+the same perturbations), with ``uncertainty.png`` and ``--uncertainty-page PATH``. Every row
 says what its policy calls at test time (``test_time``: ``agents.models.TEST_TIMES``). See
 ``docs/training.md`` for the metrics. The suites, policies and episodes: ``agents.episodes``;
 the statistics, tables, chart and results page: ``agents.summary``.
@@ -51,11 +55,12 @@ from agents.episodes import (
     run_episode,
     run_job,
 )
-from agents.friction_page import friction_page, friction_plot
 from agents.provenance import git_commit, utc_now
 from agents.summary import bar_chart, markdown_table, results_page, summarize, write_csv, write_gif
+from agents.sweep_page import FRICTION, UNCERTAINTY, Sweep, sweep_page, sweep_plot
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
+from grasp_env.envs.uncertainty import MAX_UNCERTAINTY
 from grasp_env.mechanics.friction import MU_MAX
 
 
@@ -71,9 +76,10 @@ def evaluate(
     perturbed_episodes: int = 0,
     lift_episodes: int = 0,
     frictions: Sequence[float] = (0.0,),
+    uncertainties: Sequence[float] = (0.0,),
 ) -> list[dict[str, Any]]:
-    """Run every policy on every suite at every friction level, write every output into
-    ``out``; returns the rows."""
+    """Run every policy on every suite at every friction and uncertainty level, write every
+    output into ``out``; returns the rows."""
     out.mkdir(parents=True, exist_ok=True)
     scenes = scenes if scenes is not None else grasp_env.bundled_scenes()
     episodes_at = [
@@ -93,7 +99,12 @@ def evaluate(
         for spec in specs
         for k in range(n)
     ]
-    jobs = [(*e, max_steps, None, mu) for mu in frictions for e in episodes_at]
+    jobs = [
+        (*e, max_steps, None, mu, sigma)
+        for mu in frictions
+        for sigma in uncertainties
+        for e in episodes_at
+    ]
     if workers > 1:
         with ProcessPoolExecutor(workers, initializer=_one_thread) as pool:
             results = _progress(pool.map(run_job, jobs, chunksize=1), len(jobs))
@@ -106,8 +117,9 @@ def evaluate(
     table = markdown_table(rows)
     (out / "summary.md").write_text(table)
     bar_chart(out / "summary.png", rows)
-    if len(frictions) > 1:
-        friction_plot(out / "friction.png", rows)
+    for sweep, levels in ((FRICTION, frictions), (UNCERTAINTY, uncertainties)):
+        if len(levels) > 1:
+            sweep_plot(out / f"{sweep.key}.png", rows, sweep)
     for spec in specs:
         frames: list[np.ndarray] = []
         run_episode(spec, "bundled", GIF_SCENE, 0, max_steps, frames)
@@ -246,6 +258,16 @@ def main(argv: list[str] | None = None) -> None:
         help="also write the success-against-friction page there (with two or more --friction "
         "levels; docs/friction_results.md is the shipped one)",
     )  # fmt: skip
+    parser.add_argument(
+        "--uncertainty", type=uncertainty_levels, default=(0.0,), metavar="SIGMA,SIGMA,...",
+        help="standard deviations of the object's vertices (palm widths) to play every episode "
+        "at (the env's uncertainty)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--uncertainty-page", metavar="PATH",
+        help="also write the success-against-uncertainty page there (with two or more "
+        "--uncertainty levels; docs/uncertainty_results.md is the shipped one)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.workers > MAX_WORKERS:
         parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
@@ -263,11 +285,19 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--out {problem}")
     if args.results_page and (problem := results_page_problem(Path(args.results_page))):
         parser.error(f"--results-page {problem}")
-    if args.friction_page:
-        if len(args.friction) < 2:
-            parser.error("--friction-page needs two or more --friction levels")
-        if problem := results_page_problem(Path(args.friction_page)):
-            parser.error(f"--friction-page {problem}")
+    pages = [
+        (sweep, levels, Path(page))
+        for sweep, levels, page in (
+            (FRICTION, args.friction, args.friction_page),
+            (UNCERTAINTY, args.uncertainty, args.uncertainty_page),
+        )
+        if page
+    ]
+    for sweep, levels, page in pages:
+        if len(levels) < 2:
+            parser.error(f"--{sweep.key}-page needs two or more --{sweep.key} levels")
+        if problem := results_page_problem(page):
+            parser.error(f"--{sweep.key}-page {problem}")
     rows = evaluate(
         specs,
         Path(args.out),
@@ -280,6 +310,7 @@ def main(argv: list[str] | None = None) -> None:
         args.perturbed_episodes,
         args.lift_episodes,
         args.friction,
+        args.uncertainty,
     )
     print(markdown_table(rows), end="")
     print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")
@@ -288,29 +319,42 @@ def main(argv: list[str] | None = None) -> None:
         page = results_page(rows, command, utc_now(), git_commit())
         Path(args.results_page).write_text(page)
         print(f"wrote {args.results_page}")
-    if args.friction_page:
-        page_path = Path(args.friction_page)
-        image = Path("images") / f"{page_path.stem}.png"
-        (page_path.parent / "images").mkdir(exist_ok=True)
-        friction_plot(page_path.parent / image, rows)
-        page = friction_page(rows, image.as_posix(), command, utc_now(), git_commit())
-        page_path.write_text(page)
-        print(f"wrote {page_path} and {page_path.parent / image}")
+    for sweep, _, page in pages:
+        write_sweep_page(page, rows, sweep, command)
+
+
+def write_sweep_page(path: Path, rows: list[dict[str, Any]], sweep: Sweep, command: str) -> None:
+    """The sweep's page at ``path``, its plot in ``images/`` beside it."""
+    image = Path("images") / f"{path.stem}.png"
+    (path.parent / "images").mkdir(exist_ok=True)
+    sweep_plot(path.parent / image, rows, sweep)
+    path.write_text(sweep_page(rows, sweep, image.as_posix(), command, utc_now(), git_commit()))
+    print(f"wrote {path} and {path.parent / image}")
+
+
+def levels(text: str, most: float) -> tuple[float, ...]:
+    """Comma-separated levels, each in [0, ``most``], distinct, in increasing order."""
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not comma-separated numbers: {text!r}") from None
+    for x in values:
+        if not (math.isfinite(x) and 0.0 <= x <= most):
+            raise argparse.ArgumentTypeError(f"each must be in [0, {most:g}], got {x!r}")
+    if len(set(values)) != len(values):
+        raise argparse.ArgumentTypeError(f"levels repeat: {text!r}")
+    return tuple(sorted(values))
 
 
 def friction_levels(text: str) -> tuple[float, ...]:
-    """``--friction``'s comma-separated Coulomb coefficients, each in [0, MU_MAX], distinct,
-    in increasing order."""
-    try:
-        levels = [float(x) for x in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not comma-separated numbers: {text!r}") from None
-    for mu in levels:
-        if not (math.isfinite(mu) and 0.0 <= mu <= MU_MAX):
-            raise argparse.ArgumentTypeError(f"each must be in [0, {MU_MAX:g}], got {mu!r}")
-    if len(set(levels)) != len(levels):
-        raise argparse.ArgumentTypeError(f"levels repeat: {text!r}")
-    return tuple(sorted(levels))
+    """``--friction``'s Coulomb coefficients, each in [0, MU_MAX]."""
+    return levels(text, MU_MAX)
+
+
+def uncertainty_levels(text: str) -> tuple[float, ...]:
+    """``--uncertainty``'s standard deviations of the vertices, each in [0, MAX_UNCERTAINTY]
+    palm widths."""
+    return levels(text, MAX_UNCERTAINTY)
 
 
 if __name__ == "__main__":

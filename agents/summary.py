@@ -57,26 +57,29 @@ def bootstrap_mean(values: list[float], seed: int = 0) -> tuple[float, float]:
 def summarize(
     episodes: list[Episode], test_times: dict[str, str] | None = None
 ) -> list[dict[str, Any]]:
-    """One row per (friction, suite, policy): rates with Wilson CIs, means with bootstrap CIs,
+    """One row per (friction, uncertainty, suite, policy): rates with Wilson CIs, means with
+    bootstrap CIs,
     ``test_time``, what the policy calls at test time (``test_times``, by policy name; "" for
     a policy it does not name), and ``friction``, the Coulomb coefficient the episodes were
-    played at (0: the frictionless task).
+    played at (0: the frictionless task), and ``uncertainty``, the standard deviation of the
+    vertices' perturbation (0: the shape known exactly).
 
     Suites: the paper's scene alone (``fig13``), all bundled scenes (left out where fig13 is
     the only one: its rows would repeat fig13's), the held-out shapes in the default and the
     wide ranges and from the planner's placement, fig13 from perturbed starts.
     """
     rows = []
-    for friction in sorted({e.friction for e in episodes}):
-        at = [e for e in episodes if e.friction == friction]
-        rows += [r | {"friction": friction} for r in _summarize_one(at, test_times)]
+    for level in sorted({(e.friction, e.uncertainty) for e in episodes}):
+        at = [e for e in episodes if (e.friction, e.uncertainty) == level]
+        labels = {"friction": level[0], "uncertainty": level[1]}
+        rows += [r | labels for r in _summarize_one(at, test_times)]
     return rows
 
 
 def _summarize_one(
     episodes: list[Episode], test_times: dict[str, str] | None
 ) -> list[dict[str, Any]]:
-    """:func:`summarize` of episodes played at one friction."""
+    """:func:`summarize` of episodes played at one friction and uncertainty."""
     rows = []
     test_times = test_times or {}
     bundled = [e for e in episodes if e.suite == "bundled"]
@@ -128,6 +131,8 @@ def _summarize_one(
 
 #: A summary cell with nothing to show (no success to average, no episode that reached closure).
 EMPTY = "n/a"
+#: The swept env parameters a row's suite is labelled with where not 0: column and symbol.
+LEVELS = (("friction", "mu"), ("uncertainty", "sigma"))
 #: The summary table's columns: header and alignment row.
 TABLE_HEAD = (
     "| suite | policy | test time | n | success (95% CI) | y*/W mean ± sd (95% CI) "
@@ -160,7 +165,8 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
                 f"({num(r['steps_to_closure_ci_low'], '.1f')}-"
                 f"{num(r['steps_to_closure_ci_high'], '.1f')})"
             )
-        suite = r["suite"] if not r.get("friction") else f"{r['suite']} (mu {r['friction']:g})"
+        levels = [f"{symbol} {r[key]:g}" for key, symbol in LEVELS if r.get(key)]
+        suite = f"{r['suite']} ({', '.join(levels)})" if levels else r["suite"]
         lines.append(
             f"| {suite} | {r['policy']} | {r['test_time']} | {r['episodes']} | {success} "
             f"| {grip} | {closure} | {r['drops']} | {r['jams']} | {r['errors']} |"

@@ -1,10 +1,12 @@
-"""Success against friction: the table, the plot and the generated page of an evaluation
-played at several Coulomb coefficients (``python -m agents.evaluate --friction 0,0.1,...
---friction-page PATH``), from :func:`agents.summary.summarize`'s rows."""
+"""Success against one swept parameter of the env: the table, the plot and the generated page
+of an evaluation played at several levels of it (``python -m agents.evaluate --friction
+0,0.1,... --friction-page PATH``, or ``--uncertainty`` and ``--uncertainty-page``), from
+:func:`agents.summary.summarize`'s rows."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -12,20 +14,68 @@ from agents.provenance import generated_header
 from agents.summary import SUITE_TITLES
 
 
-def frictions_of(rows: list[dict[str, Any]]) -> list[float]:
-    """The friction levels of the rows, in increasing order."""
-    return sorted({r["friction"] for r in rows})
+@dataclass(frozen=True)
+class Sweep:
+    """A swept env parameter: its rows' column (``key``), its symbol in the table's head, the
+    plot's axis label, the page's subject (its title: "Success against <subject>") and the
+    page's paragraph on how it is played."""
+
+    key: str
+    symbol: str
+    axis: str
+    subject: str
+    how: str
 
 
-def friction_table(rows: list[dict[str, Any]]) -> str:
+FRICTION = Sweep(
+    "friction", "mu", "Coulomb friction mu", "friction",
+    "Each policy plays the same scenes, starts and seeds at each Coulomb coefficient `mu` "
+    "(the env's `friction`, the same at every contact): a step whose hand motion the "
+    "contacts could resist with that friction (`grasp_env.critical_friction` at most "
+    "`mu`) jams, and the hand stays where it is; between such steps the object moves as "
+    "without friction. So a policy succeeds at `mu` when it reaches the grasp by motions "
+    "that friction `mu` cannot stop. Success is form closure off the support at the "
+    "episode's last step, with its Wilson 95% interval; `test time` says what the policy "
+    "calls when it plays ([results.md](results.md)). The test and what it leaves out: "
+    "[friction.md](friction.md).",
+)  # fmt: skip
+UNCERTAINTY = Sweep(
+    "uncertainty", "sigma", "vertex noise sigma (palm widths)", "shape uncertainty",
+    "Each policy plays the same scenes, starts, seeds and perturbations at each level "
+    "`sigma` (the env's `uncertainty`): the simulated object is the nominal one with every "
+    "vertex moved by normal noise of standard deviation `sigma` palm widths (the resting "
+    "edge along the support), while the policy is told the nominal object (the scripted "
+    "planner plans on it and plays its plan open loop). Success is form closure off the "
+    "support at the episode's last step, with its Wilson 95% interval; `test time` says "
+    "what the policy calls when it plays ([results.md](results.md)). The set-up and where "
+    "the planner breaks: [uncertainty.md](uncertainty.md).",
+)  # fmt: skip
+#: Every swept parameter: a sweep's table and plot keep the others at their lowest level.
+SWEEPS = (FRICTION, UNCERTAINTY)
+
+
+def levels_of(rows: list[dict[str, Any]], sweep: Sweep) -> list[float]:
+    """The sweep's levels in the rows, in increasing order."""
+    return sorted({r[sweep.key] for r in rows})
+
+
+def swept_rows(rows: list[dict[str, Any]], sweep: Sweep) -> list[dict[str, Any]]:
+    """The rows of the sweep: every other swept parameter at its lowest level."""
+    lowest = {s.key: min(r[s.key] for r in rows) for s in SWEEPS if s is not sweep}
+    return [r for r in rows if all(r[k] == v for k, v in lowest.items())]
+
+
+def sweep_table(rows: list[dict[str, Any]], sweep: Sweep) -> str:
     """One markdown row per suite and policy: its success rate (Wilson 95% interval) at each
-    friction level."""
-    levels = frictions_of(rows)
-    head = "| suite | policy | test time | n | " + " | ".join(f"mu = {m:g}" for m in levels)
+    level of the sweep."""
+    rows = swept_rows(rows, sweep)
+    levels = levels_of(rows, sweep)
+    head = "| suite | policy | test time | n | "
+    head += " | ".join(f"{sweep.symbol} = {m:g}" for m in levels)
     lines = [head + " |", "| --- " * (4 + len(levels)) + "|"]
     cells: dict[tuple[str, str], dict[float, dict[str, Any]]] = {}
     for r in rows:
-        cells.setdefault((r["suite"], r["policy"]), {})[r["friction"]] = r
+        cells.setdefault((r["suite"], r["policy"]), {})[r[sweep.key]] = r
     for (suite, policy), by_level in cells.items():
         first = next(iter(by_level.values()))
         rates = [
@@ -41,14 +91,15 @@ def friction_table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def friction_plot(path: Path, rows: list[dict[str, Any]]) -> None:
-    """Success rate against the friction coefficient, one panel per suite, one line per
-    policy, with the 95% intervals as bands."""
+def sweep_plot(path: Path, rows: list[dict[str, Any]], sweep: Sweep) -> None:
+    """Success rate against the sweep's level, one panel per suite, one line per policy, with
+    the 95% intervals as bands."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    rows = swept_rows(rows, sweep)
     suites = list(dict.fromkeys(r["suite"] for r in rows))
     policies = list(dict.fromkeys(r["policy"] for r in rows))
     fig, axes = plt.subplots(1, len(suites), figsize=(4.2 * len(suites), 3.6), squeeze=False)
@@ -56,18 +107,18 @@ def friction_plot(path: Path, rows: list[dict[str, Any]]) -> None:
         for policy in policies:
             mine = sorted(
                 (r for r in rows if r["suite"] == suite and r["policy"] == policy),
-                key=lambda r: r["friction"],
+                key=lambda r: r[sweep.key],
             )
             if not mine:
                 continue
-            mu = [r["friction"] for r in mine]
-            line = ax.plot(mu, [r["success_rate"] for r in mine], marker="o", label=policy)[0]
+            x = [r[sweep.key] for r in mine]
+            line = ax.plot(x, [r["success_rate"] for r in mine], marker="o", label=policy)[0]
             ax.fill_between(
-                mu, [r["success_ci_low"] for r in mine], [r["success_ci_high"] for r in mine],
+                x, [r["success_ci_low"] for r in mine], [r["success_ci_high"] for r in mine],
                 color=line.get_color(), alpha=0.12,
             )  # fmt: skip
         ax.set_title(suite)
-        ax.set_xlabel("Coulomb friction mu")
+        ax.set_xlabel(sweep.axis)
         ax.set_ylim(-0.02, 1.02)
     axes[0][0].set_ylabel("success rate")
     handles, labels = axes[0][0].get_legend_handles_labels()
@@ -78,30 +129,22 @@ def friction_plot(path: Path, rows: list[dict[str, Any]]) -> None:
     plt.close(fig)
 
 
-def friction_page(
-    rows: list[dict[str, Any]], image: str, command: str, date: str, commit: str
+def sweep_page(
+    rows: list[dict[str, Any]], sweep: Sweep, image: str, command: str, date: str, commit: str
 ) -> str:
-    """The page: how friction is played, the table and the plot (``image``, relative to the
+    """The page: how the sweep is played, the table and the plot (``image``, relative to the
     page), with the date, the commit and the command."""
     suites = list(dict.fromkeys(r["suite"] for r in rows))
     lines = [
-        "# Success against friction",
+        f"# Success against {sweep.subject}",
         "",
-        *generated_header("agents.evaluate --friction-page", command, date, commit),
-        "Each policy plays the same scenes, starts and seeds at each Coulomb coefficient `mu` "
-        "(the env's `friction`, the same at every contact): a step whose hand motion the "
-        "contacts could resist with that friction (`grasp_env.critical_friction` at most "
-        "`mu`) jams, and the hand stays where it is; between such steps the object moves as "
-        "without friction. So a policy succeeds at `mu` when it reaches the grasp by motions "
-        "that friction `mu` cannot stop. Success is form closure off the support at the "
-        "episode's last step, with its Wilson 95% interval; `test time` says what the policy "
-        "calls when it plays ([results.md](results.md)). The test and what it leaves out: "
-        "[friction.md](friction.md).",
+        *generated_header(f"agents.evaluate --{sweep.key}-page", command, date, commit),
+        sweep.how,
         "",
         "Suites: " + "; ".join(f"`{s}`, {SUITE_TITLES.get(s, s)}" for s in suites) + ".",
         "",
-        friction_table(rows).rstrip("\n"),
+        sweep_table(rows, sweep).rstrip("\n"),
         "",
-        f"![success against friction]({image})",
+        f"![success against {sweep.subject}]({image})",
     ]
     return "\n".join(lines) + "\n"

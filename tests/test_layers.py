@@ -42,7 +42,7 @@ LAYERS = {
         ("callbacks", "scripted", "rllib_policy", "rllib_config", "rllib_training"),
         ("planner_base", "planner_agents"),
         ("models",),
-        ("episodes", "summary", "friction_page", "expert", "cloning", "imitation_page"),
+        ("episodes", "summary", "sweep_page", "expert", "cloning", "imitation_page"),
         ("train_ppo", "train_rllib", "evaluate", "learning_curves", "imitation"),
     ],
 }

@@ -14,9 +14,9 @@ pytest.importorskip("stable_baselines3")
 from agents import config as cf
 from agents import episodes as ep
 from agents import evaluate as ev
-from agents import friction_page as fp
 from agents import models, provenance
 from agents import summary as sm
+from agents import sweep_page as sp
 from agents.planner_agents import PlannerGrip, PlannerHandover, PlannerResidual
 from agents.planner_base import PlannerAgent
 
@@ -216,12 +216,61 @@ def test_rows_at_each_friction_and_the_friction_page(tmp_path):
     assert rows[: len(plain)] == plain
     assert [r["friction"] for r in rows] == [0.0] * len(plain) + [0.3] * len(plain)
     assert "| fig13 (mu 0.3) | scripted | planner | 1 | 0.00" in sm.markdown_table(rows)
-    table = fp.friction_table(rows)
+    table = sp.sweep_table(rows, sp.FRICTION)
     assert table.splitlines()[0] == "| suite | policy | test time | n | mu = 0 | mu = 0.3 |"
     assert "| fig13 | scripted | planner | 1 | 1.00 (0.21-1.00) | 0.00 (0.00-0.79) |" in table
-    page = fp.friction_page(rows, "images/f.png", "python -m agents.evaluate", "d", "c")
+    page = sp.sweep_page(rows, sp.FRICTION, "images/f.png", "python -m agents.evaluate", "d", "c")
     assert page.startswith("# Success against friction\n") and table in page
     assert "![success against friction](images/f.png)" in page
     pytest.importorskip("matplotlib", reason="the viz extra draws the plot")
-    fp.friction_plot(tmp_path / "f.png", rows)
+    sp.sweep_plot(tmp_path / "f.png", rows, sp.FRICTION)
     assert (tmp_path / "f.png").stat().st_size > 0
+
+
+def test_uncertainty_levels_are_parsed_and_refused_by_name(capsys):
+    assert ev.uncertainty_levels("0.02,0,0.005") == (0.0, 0.005, 0.02)
+    for bad in ("0.1,x", "-0.01", "nan", "0.01,0.01", "2"):
+        with pytest.raises(SystemExit):
+            ev.main(["--models", "--uncertainty", bad])
+        assert "--uncertainty" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        ev.main(["--models", "--uncertainty", "0.01", "--uncertainty-page", "x.md"])
+    assert "--uncertainty-page needs two or more" in capsys.readouterr().err
+
+
+def test_rows_at_each_uncertainty_and_the_uncertainty_page(tmp_path):
+    """Episodes at two vertex deviations (and two frictions): a row per pair, and an
+    uncertainty page whose table has one success column per deviation, at the lowest
+    friction."""
+    noisy = [ep.Episode(**{**e.__dict__, "uncertainty": 0.02}) for e in EPISODES]
+    noisy[0].success = False
+    rough = [ep.Episode(**{**e.__dict__, "friction": 0.3}) for e in EPISODES + noisy]
+    for e in rough:
+        e.success = True
+    rows = sm.summarize(EPISODES + noisy + rough, TEST_TIMES)
+    plain = sm.summarize(EPISODES, TEST_TIMES)
+    assert rows[: len(plain)] == plain
+    assert [(r["friction"], r["uncertainty"]) for r in rows] == (
+        [(0.0, 0.0)] * len(plain) + [(0.0, 0.02)] * len(plain)
+        + [(0.3, 0.0)] * len(plain) + [(0.3, 0.02)] * len(plain)
+    )  # fmt: skip
+    assert "| fig13 (sigma 0.02) | scripted | planner | 1 | 0.00" in sm.markdown_table(rows)
+    assert "| fig13 (mu 0.3, sigma 0.02) | scripted | planner | 1 | 1.00" in sm.markdown_table(rows)
+    table = sp.sweep_table(rows, sp.UNCERTAINTY)
+    assert table.splitlines()[0] == "| suite | policy | test time | n | sigma = 0 | sigma = 0.02 |"
+    assert "| fig13 | scripted | planner | 1 | 1.00 (0.21-1.00) | 0.00 (0.00-0.79) |" in table
+    page = sp.sweep_page(
+        rows, sp.UNCERTAINTY, "images/u.png", "python -m agents.evaluate", "d", "c"
+    )
+    assert page.startswith("# Success against shape uncertainty\n") and table in page
+    assert "![success against shape uncertainty](images/u.png)" in page
+
+
+def test_an_episode_at_an_uncertainty_plays_the_perturbed_env():
+    """``run_episode(uncertainty=...)`` records the level and plays the env made with it:
+    the planner's episode differs from the exact shape's."""
+    spec = next(s for s in ep.default_policies([], []) if s.kind == "scripted")
+    exact = ep.run_episode(spec, "bundled", "fig13", 0, 40)
+    noisy = ep.run_episode(spec, "bundled", "fig13", 0, 40, uncertainty=0.02)
+    assert (exact.uncertainty, noisy.uncertainty) == (0.0, 0.02)
+    assert noisy.ret != exact.ret
