@@ -162,12 +162,16 @@ def _lifted(row: dict) -> bool:
 
 
 def _reason(row: dict) -> str:
-    """A failed plan's reason, shortened to its kind."""
+    """A failed plan's reason, shortened to its kind, and whether the object has no face
+    turned down besides its supporting edge."""
+    from grasp_env.planning.grasp import NO_FACE_DOWN
+
     if row["status"] in ("timeout", "error"):
         return row["status"]
     if row["status"] == "form_closure":
         return "lifted but the final state fails the re-check"
-    return row["reason"].split(":")[0]
+    kind = row["reason"].split(":")[0]
+    return f"{kind}; {NO_FACE_DOWN}" if NO_FACE_DOWN in row["reason"] else kind
 
 
 def _wilson(k: int, n: int) -> str:

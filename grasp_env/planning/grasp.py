@@ -45,6 +45,10 @@ log = logging.getLogger(__name__)
 #: (:func:`explore`), the planner's last resort.
 EXPLORE_MOVES = 20000
 
+#: What a stuck plan's message says of an object whose faces all turn up or sideways but its
+#: supporting edge (:func:`_faces_down`): the class of object the planner fails on.
+NO_FACE_DOWN = "no face but the supporting edge faces down"
+
 
 def plan_grasp(
     scene,
@@ -166,10 +170,7 @@ def _stuck_reason(sim: Simulator, tried: list[tuple[str, State, PhaseResult]], r
     whether the object has a face turned down besides its supporting edge."""
     why = _placement_reason(sim, tried, regions)
     if not _faces_down(sim.scene):
-        why += (
-            " (no face but the supporting edge faces down: only a fingertip under a raised "
-            "corner can push the object up)"
-        )
+        why += f" ({NO_FACE_DOWN}: only a fingertip under a raised corner can push the object up)"
     return why
 
 

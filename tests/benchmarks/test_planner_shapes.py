@@ -38,3 +38,13 @@ def test_small_suite_page_has_a_row_per_vertex_count_and_band(tmp_path):
         assert any(
             line.startswith(f"| small | {planner_shapes.band_name(band)} |") for line in lines
         )
+
+
+def test_a_failure_reason_keeps_whether_the_object_has_a_face_turned_down():
+    stuck = "fixed-palm lifting stuck from every placement: the hand wedges the object (2 of 2)"
+    row = {"status": "stuck", "reason": stuck}
+    assert planner_shapes._reason(row) == "fixed-palm lifting stuck from every placement"
+    row["reason"] = stuck + " (no face but the supporting edge faces down: only a fingertip)"
+    assert planner_shapes._reason(row) == (
+        "fixed-palm lifting stuck from every placement; no face but the supporting edge faces down"
+    )
