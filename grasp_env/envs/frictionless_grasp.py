@@ -268,19 +268,13 @@ class FrictionlessGraspEnv(GraspEnvBase):
       ids: 200).
     * ``friction``: a Coulomb coefficient ``mu`` in [0, 1e6] at every contact that stops a
       step it can jam (0: none, the paper's frictionless task); see Episode End.
-    * ``uncertainty``: the object's shape is not known exactly (0: it is, the default). A
-      number ``sigma`` in [0, 1]: at every reset the simulated object is the nominal one (the
-      scene's, or the random shape drawn) with each vertex moved by independent normal noise
-      of standard deviation ``sigma`` palm widths, the vertices on the support along it only;
-      a dict ``{"vertices": sigma, "mass": rel_sd}`` also scales the mass by ``1 + rel_sd *
-      z``, ``z`` standard normal (a centre of mass off the centroid does not fit the
-      simulator's uniform-density objects). A draw is redrawn, up to 100 times, unless the
-      object stays strictly convex, at rest on the same edge (its centroid over it) and clear
-      of the hand's set-up; a scene none of whose draws does so raises ``ValueError``. The
-      draws come from the env's generator (a seed reproduces them; none at 0). The
-      observation's vertex block and hand-object distances show the nominal object (at the
-      simulated object's pose); contacts, forces, poses, rewards and the start are the
-      simulated object's (docs/uncertainty.md).
+    * ``uncertainty``: how inexactly the object is known (0: exactly). ``sigma`` in [0, 1]:
+      at every reset the simulated object is the nominal one with each vertex moved by
+      normal noise of sd ``sigma`` palm widths (those on the support along it), redrawn up
+      to 100 times until strictly convex, resting on the same edge and clear of the hand;
+      ``{"vertices": sigma, "mass": rel_sd}`` also scales the mass by ``1 + rel_sd z``. The
+      observation's vertex block and hand-object distances show the nominal object; the
+      rest is the simulated one's (docs/uncertainty.md).
     * ``render_mode``: None, ``"rgb_array"`` or ``"human"``; ``render_width``,
       ``render_height`` (640, 480; 16 to 16384 pixels).
 
