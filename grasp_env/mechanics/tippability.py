@@ -78,9 +78,10 @@ import numpy as np
 
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene import Scene
+from grasp_env.mechanics import tip_regions
+from grasp_env.mechanics.tip_regions import *  # noqa: F403 (re-exported, see __all__)
 from grasp_env.mechanics.tip_regions import (
     DEFAULT_TOL,
-    MAX_TOL,
     EdgeSubregion,
     Side,
     TippabilityRegion,
@@ -91,15 +92,8 @@ from grasp_env.mechanics.tip_regions import (
 )
 from grasp_env.mechanics.width import object_vertices_W
 
-__all__ = [
-    "DEFAULT_TOL",
-    "MAX_TOL",
-    "EdgeSubregion",
-    "TippabilityRegion",
-    "VertexSubregion",
-    "support_contacts",
-    "tippability_regions",
-]
+#: The region records and tolerances of :mod:`grasp_env.mechanics.tip_regions` are re-exported.
+__all__ = [*tip_regions.__all__, "support_contacts", "tippability_regions"]
 
 
 def _wrap(angle: float) -> float:
