@@ -224,6 +224,8 @@ def test_polygon_contacts_all_outcomes(n: int) -> None:
 
 E = np.eye(3)
 SUPPORTS = np.array([[0.0, 1.0, x] for x in (-1.0, -0.5, 0.5, 1.0)])  # n = (0, 1), r x n = x
+INTERVAL = np.array([[0.0, 1.0, 0.0], [0.0, -2.0, 0.0]])  # v_y >= xi_0, -2 v_y >= xi_1: rank 1
+WITH_ZERO_ROW = np.vstack([E, np.zeros(3)])
 
 FAMILIES = {
     # name: (V, xi, c, expected status, expected value or None)
@@ -263,27 +265,9 @@ FAMILIES = {
         "infeasible",
         None,
     ),
-    "rank1-interval-low": (
-        np.array([[0.0, 1.0, 0.0], [0.0, -2.0, 0.0]]),
-        [0, -2.0],
-        E[1],
-        "optimal",
-        0.0,
-    ),
-    "rank1-interval-high": (
-        np.array([[0.0, 1.0, 0.0], [0.0, -2.0, 0.0]]),
-        [0.0, -2.0],
-        -E[1],
-        "optimal",
-        -1.0,
-    ),
-    "rank1-empty-interval": (
-        np.array([[0.0, 1.0, 0.0], [0.0, -2.0, 0.0]]),
-        [1.0, 0.0],
-        E[1],
-        "infeasible",
-        None,
-    ),
+    "rank1-interval-low": (INTERVAL, [0, -2.0], E[1], "optimal", 0.0),
+    "rank1-interval-high": (INTERVAL, [0.0, -2.0], -E[1], "optimal", -1.0),
+    "rank1-empty-interval": (INTERVAL, [1.0, 0.0], E[1], "infeasible", None),
     "rank2-cost-outside-plane": (SUPPORTS[:2], [0.0, 0.0], E[0], "unbounded", None),
     "duplicate-rows": (
         np.vstack([E, E, E[[0]]]),
@@ -308,20 +292,8 @@ FAMILIES = {
         "optimal",
         0.0,
     ),
-    "zero-row-inactive": (
-        np.vstack([E, np.zeros(3)]),
-        [1.0, 1, 1, -1],
-        [1.0, 1, 1],
-        "optimal",
-        3.0,
-    ),
-    "zero-row-violated": (
-        np.vstack([E, np.zeros(3)]),
-        [1.0, 1, 1, 1e-3],
-        [1.0, 1, 1],
-        "infeasible",
-        None,
-    ),
+    "zero-row-inactive": (WITH_ZERO_ROW, [1.0, 1, 1, -1], [1.0, 1, 1], "optimal", 3.0),
+    "zero-row-violated": (WITH_ZERO_ROW, [1.0, 1, 1, 1e-3], [1.0, 1, 1], "infeasible", None),
     "rank3-dual-infeasible": (E, [0.0, 0.0, 0.0], -E[1], "unbounded", None),
     "both-infeasible": (
         np.vstack([E, -E[[0]]]),
