@@ -195,15 +195,26 @@ def test_help_shows_every_default(capsys):
     assert "(default: None)" not in out and "(default: [])" not in out
 
 
-def test_friction_levels_are_parsed_and_refused_by_name(capsys):
-    assert ev.friction_levels("0.3,0,0.1") == (0.0, 0.1, 0.3)
-    for bad in ("0.1,x", "-0.1", "nan", "0.1,0.1", "2e6"):
+#: option: its parser, a text and its levels, bad texts, one good level (too few for a page)
+LEVELS = {
+    "friction": (ev.friction_levels, "0.3,0,0.1", (0.0, 0.1, 0.3),
+                 ("0.1,x", "-0.1", "nan", "0.1,0.1", "2e6"), "0.2"),
+    "uncertainty": (ev.uncertainty_levels, "0.02,0,0.005", (0.0, 0.005, 0.02),
+                    ("0.1,x", "-0.01", "nan", "0.01,0.01", "2"), "0.01"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("option", LEVELS)
+def test_levels_are_parsed_and_refused_by_name(option, capsys):
+    parse, text, parsed, bads, one = LEVELS[option]
+    assert parse(text) == parsed
+    for bad in bads:
         with pytest.raises(SystemExit):
-            ev.main(["--models", "--friction", bad])
-        assert "--friction" in capsys.readouterr().err
+            ev.main(["--models", f"--{option}", bad])
+        assert f"--{option}" in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        ev.main(["--models", "--friction", "0.2", "--friction-page", "x.md"])
-    assert "two or more" in capsys.readouterr().err
+        ev.main(["--models", f"--{option}", one, f"--{option}-page", "x.md"])
+    assert f"--{option}-page needs two or more" in capsys.readouterr().err
 
 
 def test_rows_at_each_friction_and_the_friction_page(tmp_path):
@@ -225,17 +236,6 @@ def test_rows_at_each_friction_and_the_friction_page(tmp_path):
     pytest.importorskip("matplotlib", reason="the viz extra draws the plot")
     sp.sweep_plot(tmp_path / "f.png", rows, sp.FRICTION)
     assert (tmp_path / "f.png").stat().st_size > 0
-
-
-def test_uncertainty_levels_are_parsed_and_refused_by_name(capsys):
-    assert ev.uncertainty_levels("0.02,0,0.005") == (0.0, 0.005, 0.02)
-    for bad in ("0.1,x", "-0.01", "nan", "0.01,0.01", "2"):
-        with pytest.raises(SystemExit):
-            ev.main(["--models", "--uncertainty", bad])
-        assert "--uncertainty" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        ev.main(["--models", "--uncertainty", "0.01", "--uncertainty-page", "x.md"])
-    assert "--uncertainty-page needs two or more" in capsys.readouterr().err
 
 
 def test_rows_at_each_uncertainty_and_the_uncertainty_page(tmp_path):
