@@ -12,6 +12,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from vector_checks import lockstep
 
 import grasp_env
 
@@ -88,27 +89,11 @@ def test_simulate_action_is_the_step_with_friction() -> None:
 
 def test_the_batched_env_jams_as_the_single_one() -> None:
     """Sub-env i of ``make_vec`` with friction follows a single env reset with seed + i."""
-    n, mu = 3, 0.4
-    vec = gym.make_vec("FrictionlessGraspLift-v0", num_envs=n, friction=mu)
-    singles = [gym.make("FrictionlessGraspLift-v0", friction=mu) for _ in range(n)]
-    observations, _ = vec.reset(seed=5)
-    for i, env in enumerate(singles):
-        np.testing.assert_array_equal(env.reset(seed=5 + i)[0], observations[i])
-    rng = np.random.default_rng(1)
     jams = 0
-    for _ in range(40):
-        actions = rng.uniform(-1, 1, (n, 5)).astype(np.float32)
-        actions[:, :2] = np.abs(actions[:, :2])
-        observations, rewards, _, _, infos = vec.step(actions)
-        for i, env in enumerate(singles):
-            obs, reward, term, trunc, info = env.step(actions[i])
-            assert info["friction_jam"] == infos["friction_jam"][i]
-            assert info["jammed"] == infos["jammed"][i]
-            assert reward == rewards[i]
-            if term or trunc:
-                obs, _ = env.reset()
-            np.testing.assert_array_equal(obs, observations[i])
-            jams += info["friction_jam"]
+    for i, info, infos, _ in lockstep("FrictionlessGraspLift-v0", 3, 40, friction=0.4):
+        assert info["friction_jam"] == infos["friction_jam"][i]
+        assert info["jammed"] == infos["jammed"][i]
+        jams += info["friction_jam"]
     assert jams > 0
 
 

@@ -13,6 +13,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from vector_checks import lockstep
 
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
@@ -154,26 +155,8 @@ def test_the_mass_is_scaled_by_normal_noise_and_the_vertices_kept() -> None:
 
 def test_the_batched_env_perturbs_as_the_single_one() -> None:
     """Sub-env i of ``make_vec`` with uncertainty follows a single env reset with seed + i."""
-    n, kw = 3, {"uncertainty": 0.02, "time_limit": 25}
-    vec = gym.make_vec("FrictionlessGraspLift-v0", num_envs=n, **kw)
-    singles = [gym.make("FrictionlessGraspLift-v0", **kw) for _ in range(n)]
-    observations, _ = vec.reset(seed=5)
-    for i, env in enumerate(singles):
-        np.testing.assert_array_equal(env.reset(seed=5 + i)[0], observations[i])
-    rng = np.random.default_rng(1)
-    ends = 0
-    for _ in range(40):
-        actions = rng.uniform(-1, 1, (n, 5)).astype(np.float32)
-        actions[:, :2] = np.abs(actions[:, :2])
-        observations, rewards, _, _, _ = vec.step(actions)
-        for i, env in enumerate(singles):
-            obs, reward, term, trunc, _ = env.step(actions[i])
-            assert reward == rewards[i]
-            if term or trunc:
-                obs, _ = env.reset()
-                ends += 1
-            np.testing.assert_array_equal(obs, observations[i])
-    assert ends > 0
+    steps = lockstep("FrictionlessGraspLift-v0", 3, 40, uncertainty=0.02, time_limit=25)
+    assert sum(ended for *_, ended in steps) > 0
 
 
 @pytest.mark.parametrize("bad", [-0.01, math.nan, math.inf, 2.0, {"vertices": -1.0}])
