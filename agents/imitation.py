@@ -117,6 +117,34 @@ def _positive_float(text: str) -> float:
 
 
 # ---------------------------------------------------------------------- main
+#: The expert data's numbers: flag, type, default, help.
+EXPERT_OPTIONS = (
+    ("--episodes", nonnegative_int, 300, "expert episodes from the scene's start"),
+    ("--lift-episodes", nonnegative_int, 150, "expert episodes from the planner's placement"),
+    ("--seed", int, 0, "first training seed (default: 0)"),
+    ("--hold-steps", nonnegative_int, 10, "steps kept after the expert's plan is played"),
+)
+#: Cloning's, DAgger's and the run's numbers: flag, type, default (None: unset), help.
+TRAINING_OPTIONS = (
+    ("--dagger-iters", nonnegative_int, 2, "DAgger rounds"),
+    ("--dagger-episodes", positive_int, 60, "network episodes per round"),
+    ("--query-every", positive_int, 4, "the expert labels every this many visited states"),
+    ("--epochs", positive_int, 30, "BC epochs (first fit)"),
+    ("--dagger-weight", _positive_float, 1.0,
+     "weight of a DAgger label in the loss, against 1 for an expert episode's sample"),
+    ("--dagger-epochs", positive_int, 15, "BC epochs after each round"),
+    ("--batch-size", positive_int, 256, "BC batch size"),
+    ("--lr", _positive_float, 1e-3, "BC learning rate (Adam)"),
+    ("--net-arch", _net_arch, "256,256", "hidden sizes, e.g. 256,256"),
+    ("--workers", positive_int, 2, "processes for episodes"),
+    ("--collect-minutes", _positive_float, None,
+     "stop starting expert episodes after this wall time (default: none)"),
+    ("--max-minutes", _positive_float, None,
+     "start no DAgger episode or round after this wall time (default: none)"),
+    ("--threads", positive_int, 1, "torch threads for BC"),
+)  # fmt: skip
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m agents.imitation",
@@ -127,68 +155,16 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=HelpFormatter,
     )
     p.add_argument("--out", type=Path, default=Path("runs/imitation"), help="output directory")
-    p.add_argument(
-        "--episodes",
-        type=nonnegative_int,
-        default=300,
-        help="expert episodes from the scene's start",
-    )
-    p.add_argument(
-        "--lift-episodes",
-        type=nonnegative_int,
-        default=150,
-        help="expert episodes from the planner's placement",
-    )
-    p.add_argument("--seed", type=int, default=0, help="first training seed (default: 0)")
-    p.add_argument(
-        "--hold-steps",
-        type=nonnegative_int,
-        default=10,
-        help="steps kept after the expert's plan is played",
-    )
+    for flag, kind, default, text in EXPERT_OPTIONS:
+        p.add_argument(flag, type=kind, default=default, help=text)
     p.add_argument(
         "--keep-failures", action="store_true", help="also keep the episodes the planner fails"
     )
     p.add_argument(
         "--data", type=Path, help="expert data (expert.npz of an earlier run) instead of step 1"
     )
-    p.add_argument("--dagger-iters", type=nonnegative_int, default=2, help="DAgger rounds")
-    p.add_argument(
-        "--dagger-episodes", type=positive_int, default=60, help="network episodes per round"
-    )
-    p.add_argument(
-        "--query-every",
-        type=positive_int,
-        default=4,
-        help="the expert labels every this many visited states",
-    )
-    p.add_argument("--epochs", type=positive_int, default=30, help="BC epochs (first fit)")
-    p.add_argument(
-        "--dagger-weight",
-        type=_positive_float,
-        default=1.0,
-        help="weight of a DAgger label in the loss, against 1 for an expert episode's sample",
-    )
-    p.add_argument(
-        "--dagger-epochs", type=positive_int, default=15, help="BC epochs after each round"
-    )
-    p.add_argument("--batch-size", type=positive_int, default=256, help="BC batch size")
-    p.add_argument("--lr", type=_positive_float, default=1e-3, help="BC learning rate (Adam)")
-    p.add_argument(
-        "--net-arch", type=_net_arch, default="256,256", help="hidden sizes, e.g. 256,256"
-    )
-    p.add_argument("--workers", type=positive_int, default=2, help="processes for episodes")
-    p.add_argument(
-        "--collect-minutes",
-        type=_positive_float,
-        help="stop starting expert episodes after this wall time (default: none)",
-    )
-    p.add_argument(
-        "--max-minutes",
-        type=_positive_float,
-        help="start no DAgger episode or round after this wall time (default: none)",
-    )
-    p.add_argument("--threads", type=positive_int, default=1, help="torch threads for BC")
+    for flag, kind, default, text in TRAINING_OPTIONS:
+        p.add_argument(flag, type=kind, default=default, help=text)
     p.add_argument(
         "--report",
         type=Path,
