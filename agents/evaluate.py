@@ -249,25 +249,20 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--no-scripted", action="store_true", help="leave the planner out (default: off)"
     )
-    parser.add_argument(
-        "--friction", type=friction_levels, default=(0.0,), metavar="MU,MU,...",
-        help="Coulomb coefficients to play every episode at (the env's friction)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--friction-page", metavar="PATH",
-        help="also write the success-against-friction page there (with two or more --friction "
-        "levels; docs/friction_results.md is the shipped one)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--uncertainty", type=uncertainty_levels, default=(0.0,), metavar="SIGMA,SIGMA,...",
-        help="standard deviations of the object's vertices (palm widths) to play every episode "
-        "at (the env's uncertainty)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--uncertainty-page", metavar="PATH",
-        help="also write the success-against-uncertainty page there (with two or more "
-        "--uncertainty levels; docs/uncertainty_results.md is the shipped one)",
-    )  # fmt: skip
+    for sweep, parse, metavar, what in (
+        (FRICTION, friction_levels, "MU,MU,...", "Coulomb coefficients"),
+        (UNCERTAINTY, uncertainty_levels, "SIGMA,SIGMA,...",
+         "standard deviations of the object's vertices (palm widths)"),
+    ):  # fmt: skip
+        parser.add_argument(
+            f"--{sweep.key}", type=parse, default=(0.0,), metavar=metavar,
+            help=f"{what} to play every episode at (the env's {sweep.key})",
+        )  # fmt: skip
+        parser.add_argument(
+            f"--{sweep.key}-page", metavar="PATH",
+            help=f"also write the success-against-{sweep.key} page there (with two or more "
+            f"--{sweep.key} levels; docs/{sweep.key}_results.md is the shipped one)",
+        )  # fmt: skip
     args = parser.parse_args(argv)
     if args.workers > MAX_WORKERS:
         parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
