@@ -47,28 +47,27 @@ def held(
     balance it to ``ftol`` plus ``rounding`` times the size of their terms (0, or
     :data:`ROUNDING` for a state the hand stops at, whose forces may be large), with the
     directions free to tolerance taken out (:func:`~grasp_env.sim.dependence.free_rows`:
-    gravity along one is not balanced), or every way down left is blocked at second order
-    (:func:`grasp_env.sim.curvature.wedged`). At a vertex-vertex touch the object may move
-    along either candidate's edge: it is held only if every choice of candidates holds it."""
+    gravity along one is not balanced). At a vertex-vertex touch the object may move along
+    either candidate's edge: it is held only if every choice of candidates holds it."""
     if keys.shape[0] == 0:
         return False
     for choice in contact_sets.choices(model, world, keys):
-        ok, bound = _balanced(model, world, com, choice, ftol, rounding)
-        if not ok and not wedged(model, world, com, choice, bound / model.weight):
+        if not _balanced(model, world, com, choice, ftol, rounding)[0]:
             return False
     return True
 
 
 @njit(cache=CACHE)
-def held_at_first_order(
+def held_or_wedged(
     model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, ftol: float, rounding: float
 ) -> bool:
-    """:func:`held` without the wedge: forces balance the object (a wedged object is held
-    while the hand keeps it so, but the hand may release it)."""
+    """:func:`held`, or every way down left is blocked at second order
+    (:func:`grasp_env.sim.curvature.wedged`): the object stays where the hand keeps it."""
     if keys.shape[0] == 0:
         return False
     for choice in contact_sets.choices(model, world, keys):
-        if not _balanced(model, world, com, choice, ftol, rounding)[0]:
+        ok, bound = _balanced(model, world, com, choice, ftol, rounding)
+        if not ok and not wedged(model, world, com, choice, bound / model.weight):
             return False
     return True
 

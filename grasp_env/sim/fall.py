@@ -19,7 +19,7 @@ from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import consistency, contact_sets, detection
 from grasp_env.sim.dependence import free_rows
-from grasp_env.sim.equilibrium import ROUNDING, held
+from grasp_env.sim.equilibrium import ROUNDING, held, held_or_wedged
 from grasp_env.sim.events import FALL_END, FALL_START
 from grasp_env.sim.increment import (
     band_target,
@@ -43,10 +43,13 @@ def touching(model, world: np.ndarray, exclude: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=CACHE)
-def held_here(model, q: np.ndarray, h: np.ndarray, ftol: float) -> bool:
-    """Whether the contacts touching at ``(q, h)`` hold the object, to ``ftol``."""
+def held_here(model, q: np.ndarray, h: np.ndarray, ftol: float, wedge: bool = False) -> bool:
+    """Whether the contacts touching at ``(q, h)`` hold the object, to ``ftol`` (with
+    ``wedge``, or wedge it: :func:`grasp_env.sim.equilibrium.held_or_wedged`)."""
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
+    if wedge:
+        return held_or_wedged(model, world, q[:2], keys, ftol, 0.0)
     return held(model, world, q[:2], keys, ftol, 0.0)
 
 
@@ -187,14 +190,27 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
     the rest pose and whether the object moved at all. Logs the fall's start and end."""
     events.append((FALL_START, s, contact_sets.empty()))
     moved = False
+    q0, last_y = q, np.inf
     for _ in range(model.max_iterations):
         world = place(model, q, h)
         keys = touching(model, world, contact_sets.empty())
+        drop, last_y = last_y - q[1], q[1]
         # Held only to rounding: near the boundary of equilibrium a residual within the usual
         # tolerance still leaves a way down, which the descent below finds. A wedge is held
         # by large forces that balance it to their own rounding: every descent from there
         # would be that rounding.
         if held(model, world, q[:2], keys, 1e-12 * model.weight, ROUNDING):
+            events.append((FALL_END, s, keys))
+            return q, moved
+        # Wedged at second order, the last round lowering the object by less than the
+        # tolerance: it would only creep on, every way down from here cutting into the
+        # contacts. A fall that got no lower than the tolerance did not move it.
+        if drop < model.tol and held_or_wedged(
+            model, world, q[:2], keys, 1e-12 * model.weight, ROUNDING
+        ):
+            if q0[1] - q[1] < model.tol:
+                q, moved = q0, False
+                keys = touching(model, place(model, q, h), contact_sets.empty())
             events.append((FALL_END, s, keys))
             return q, moved
         q_rest, found = cradle(model, q, h, keys, solves)
@@ -263,31 +279,35 @@ def fall_if_unheld(model, q: np.ndarray, h: np.ndarray, s: float, events: list, 
 
 
 @njit(cache=CACHE)
-def nudge(model, q, s, E, v, h0, dh, s_end, solves):
+def nudge(model, q, s, E, v, h0, dh, s_end, solves, wedge: bool):
     """Smallest step along ``E`` (geometrically consistent) after which the touching contacts
-    can no longer hold the object: ``(s, q, found)``, not found within one step."""
+    can no longer hold the object (with ``wedge``, nor wedge it): ``(s, q, found)``, not
+    found within one step."""
     ds = 1e-10
     while ds <= model.max_step and s + ds <= s_end:
         h = h0 + (s + ds) * dh
         q_new, ok = newton(model, q + v * ds, h, E, solves)
         if not ok or geometry_violation(model, q_new, h, E) > model.tol:
             return s, q, False
-        if not held_here(model, q_new, h, model.ftol):
+        if not held_here(model, q_new, h, model.ftol, wedge):
             return s + ds, q_new, True
         ds *= 4.0
     return s, q, False
 
 
 @njit(cache=CACHE)
-def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
+def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves, wedge: bool = False):
     """Nudge the hand past the boundary of equilibrium (:func:`nudge`) and let the object
     fall to rest there: ``(s, q, found)``; not found where nothing falls there either (an
     object wedged at a fold, held by forces that balance it only to their rounding), or
     where the fall finds no way down to a rest the contacts hold (a pinch at a fold: past
     it the pinching contacts are dependent to tolerance, free to first order along their
     dependence but blocked there by their curvature, so the object neither stays held nor
-    falls): the object does not get past the boundary, and the hand stops there."""
-    s_new, q_new, found = nudge(model, q, s, E, v, h0, dh, s_end, solves)
+    falls): the object does not get past the boundary, and the hand stops there. With
+    ``wedge`` the boundary is that of the object held or wedged
+    (:func:`grasp_env.sim.equilibrium.held_or_wedged`), past which the fall must end in such
+    a rest too."""
+    s_new, q_new, found = nudge(model, q, s, E, v, h0, dh, s_end, solves, wedge)
     if not found:
         return s, q, False
     h = h0 + s_new * dh
@@ -297,7 +317,10 @@ def nudge_and_fall(model, q, s, E, v, h0, dh, s_end, events, solves):
         return s, q, False  # wedged at a fold just ahead: no way past it
     world = place(model, q_rest, h)
     keys = touching(model, world, contact_sets.empty())
-    if not held(model, world, q_rest[:2], keys, model.ftol, ROUNDING):
+    rest = held(model, world, q_rest[:2], keys, model.ftol, ROUNDING) or (
+        wedge and held_or_wedged(model, world, q_rest[:2], keys, model.ftol, ROUNDING)
+    )
+    if not rest:
         while len(events) > logged:
             events.pop()  # the fall that found no rest
         return s, q, False

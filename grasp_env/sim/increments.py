@@ -31,7 +31,7 @@ from numba import njit
 from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import contact_sets, motion
-from grasp_env.sim.equilibrium import ROUNDING, determined, held, held_at_first_order
+from grasp_env.sim.equilibrium import ROUNDING, determined, held, held_or_wedged
 from grasp_env.sim.events import (
     EDGE_TO_TIP,
     JAM,
@@ -212,14 +212,15 @@ def _cannot_move(model, ms: MoveState, h, h0, dh, s_end, events, solves):
             return _moved(ms, q_new, s_new), False
     world = place(model, ms.q, h)
     keys = touching(model, world, contact_sets.empty())
-    if held(model, world, ms.q[:2], keys, model.ftol, ROUNDING) and not held_at_first_order(
+    if not held(model, world, ms.q[:2], keys, model.ftol, ROUNDING) and held_or_wedged(
         model, world, ms.q[:2], keys, model.ftol, ROUNDING
     ):
         # Wedged at second order: the hand may still move on where it leaves the object
         # where it is, and release it (a fall) past where the contacts stop holding it.
         s_new, q_new, found = nudge_and_fall(
-            model, ms.q, ms.s, contact_sets.empty(), np.zeros(3), h0, dh, s_end, events, solves
-        )
+            model, ms.q, ms.s, contact_sets.empty(), np.zeros(3), h0, dh, s_end, events, solves,
+            True,
+        )  # fmt: skip
         if found:
             return _moved(ms, q_new, s_new), False
     q_new, fell = fall_if_unheld(model, ms.q, h, ms.s, events, solves)
@@ -332,9 +333,9 @@ def _event_here(model, ms, event, event_keys, E, v, overridden, h0, dh, s_end, e
 @njit(cache=CACHE)
 def stop_at_jam(model, q: np.ndarray, h: np.ndarray, s: float) -> None:
     """The hand stops at a jam; the object must be held there (at a fold by forces without
-    bound, balanced to their rounding). A jam whose object is neither held nor able to fall
-    is a failure, not a state."""
+    bound, balanced to their rounding, or wedged at second order). A jam whose object is
+    neither held nor able to fall is a failure, not a state."""
     world = place(model, q, h)
     keys = touching(model, world, contact_sets.empty())
-    if not held(model, world, q[:2], keys, model.ftol, ROUNDING):
+    if not held_or_wedged(model, world, q[:2], keys, model.ftol, ROUNDING):
         raise SimulationError("jam at s =", s, "with the object neither held nor falling")
