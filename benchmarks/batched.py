@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 import grasp_env
-from benchmarks.common import headless, parser, run_page, table, write
+from benchmarks.common import headless, page_main, table, write
 from grasp_env.kernel import step as kernel
 
 IDS = ("FrictionlessGrasp-v0", "FrictionlessGraspRandomShapes-v0", "FrictionlessGraspLift-v0")
@@ -220,8 +220,7 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = parser("benchmarks.batched", __doc__, "batched.md", "short budgets, 1 and 64 envs")
-    return run_page(ap, run, argv)
+    return page_main(argv, run, "batched.md", "short budgets, 1 and 64 envs")
 
 
 if __name__ == "__main__":

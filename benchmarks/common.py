@@ -9,6 +9,7 @@ import platform
 import signal
 import statistics
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Sequence
 from importlib import metadata
@@ -40,16 +41,26 @@ def parser(module: str, doc: str, page: str | None = None, quick: str | None = N
     return ap
 
 
-def run_page(
-    ap: argparse.ArgumentParser,
-    run: Callable[..., object],
+def page_main(
     argv: Sequence[str] | None,
-    *options: str,
+    run: Callable[..., object],
+    page: str,
+    quick: str,
+    options: Sequence[tuple] = (),
 ) -> int:
-    """A page's command: parse ``argv`` with ``ap`` (made by :func:`parser` with ``quick`` and
-    ``page``), call ``run(quick, out, *values of options)``; exit status 0."""
+    """The command of a page, ``python -m`` of ``run``'s module: :func:`parser` with its
+    docstring, ``page`` and ``quick``, and an option ``--<name>`` a row ``(name, type, help)`` or
+    ``(name, type, help, default)`` of ``options``; parse ``argv`` and call ``run(quick, out,
+    <name>=<value>, ...)``; exit status 0."""
+    module = sys.modules[run.__module__]  # "__main__" under python -m: its spec has the name
+    name = getattr(module.__spec__, "name", run.__module__)
+    ap = parser(name, module.__doc__ or "", page, quick)
+    for option, kind, text, *default in options:
+        ap.add_argument(
+            f"--{option}", type=kind, help=text, default=default[0] if default else None
+        )
     args = ap.parse_args(argv)
-    run(args.quick, args.out, *(getattr(args, name) for name in options))
+    run(args.quick, args.out, **{option: getattr(args, option) for option, *_ in options})
     return 0
 
 

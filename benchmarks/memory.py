@@ -31,7 +31,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.common import OUT, parser, run_page, table, write
+from benchmarks.common import page_main, table, write
 
 STARTUP = """
 import json, time
@@ -174,8 +174,8 @@ def _total(startup: dict) -> float:
 
 
 def run(
-    quick: bool = False,
-    out: Path = OUT / "memory.md",
+    quick: bool,
+    out: Path,
     steps: int | None = None,
     repeat: int | None = None,
     workers: int = 8,
@@ -271,7 +271,7 @@ def run(
 
 def main(argv: list[str] | None = None) -> int:
     quick = "20 steps, 3 start-up repeats, 1 warm run, fork only"
-    return run_page(parser("benchmarks.memory", __doc__, "memory.md", quick), run, argv)
+    return page_main(argv, run, "memory.md", quick)
 
 
 if __name__ == "__main__":

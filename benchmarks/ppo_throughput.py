@@ -21,7 +21,7 @@ import statistics
 import time
 from pathlib import Path
 
-from benchmarks.common import OUT, REPO, headless, parser, run_page, table, write
+from benchmarks.common import REPO, headless, page_main, table, write
 from grasp_env.cli import positive_int
 
 VEC_ENVS = ("dummy", "subproc")
@@ -74,12 +74,7 @@ def compare(
     return rates
 
 
-def run(
-    quick: bool = False,
-    out: Path = OUT / "ppo_throughput.md",
-    entry_name: str = "fig13_fingers",
-    rounds: int | None = None,
-) -> Path:
+def run(quick: bool, out: Path, entry: str = "fig13_fingers", rounds: int | None = None) -> Path:
     """Measure both envs with both vector-env classes and write the markdown page."""
     import torch
 
@@ -89,9 +84,9 @@ def run(
     torch.set_num_threads(1)
     rounds = rounds or (1 if quick else ROUNDS)
     cases = []  # (label, our entry, our vec env, CartPole's vec env)
-    entry = get_entry(load_config(REPO / "configs" / "ppo.yml"), entry_name)
+    named = get_entry(load_config(REPO / "configs" / "ppo.yml"), entry)
     for vec_env in VEC_ENVS:
-        cases.append((f"`{entry_name}`, {vec_env}", entry, vec_env, vec_env))
+        cases.append((f"`{entry}`, {vec_env}", named, vec_env, vec_env))
     lift = get_entry(load_config(REPO / "configs" / "ppo_batched.yml"), "FrictionlessGraspLift-v0")
     # a smaller pool, made before timing: steady-state training, whatever the pool's size
     lift = {**lift, "env_kwargs": {**lift["env_kwargs"], "shape_pool": POOL}}
@@ -135,15 +130,15 @@ def run(
     return write(out, "PPO training throughput", body)
 
 
+#: ``run``'s options on the command line: name, type, help, default.
+OPTIONS = (
+    ("rounds", positive_int, f"alternating rounds (default {ROUNDS}, 1 with --quick)"),
+    ("entry", str, "configs/ppo.yml entry", "fig13_fingers"),
+)
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = parser(
-        "benchmarks.ppo_throughput", __doc__, "ppo_throughput.md", "one rollout per measurement"
-    )
-    ap.add_argument(
-        "--rounds", type=positive_int, help=f"alternating rounds (default {ROUNDS}, 1 with --quick)"
-    )
-    ap.add_argument("--entry", default="fig13_fingers", help="configs/ppo.yml entry")
-    return run_page(ap, run, argv, "entry", "rounds")
+    return page_main(argv, run, "ppo_throughput.md", "one rollout per measurement", OPTIONS)
 
 
 if __name__ == "__main__":

@@ -34,13 +34,11 @@ import gymnasium as gym
 
 import grasp_env
 from benchmarks.common import (
-    OUT,
     git_commit,
     headless,
     machine_line,
     median_time,
-    parser,
-    run_page,
+    page_main,
     table,
 )
 from benchmarks.throughput import RandomActions
@@ -203,8 +201,8 @@ CONFIGS = {"default": {}, "palm_control": {"palm_control": True}}
 
 
 def run(
-    quick: bool = False,
-    out: Path = OUT / "profile.md",
+    quick: bool,
+    out: Path,
     steps: int | None = None,
     baseline: Path | None = None,
     closing: bool = True,
@@ -246,11 +244,15 @@ def run(
     return out
 
 
+#: ``run``'s options on the command line: name, type, help.
+OPTIONS = (
+    ("steps", int, "random-action steps per configuration"),
+    ("baseline", Path, "an older profile.json to compare with"),
+)
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = parser("benchmarks.profile_step", __doc__, "profile.md", "40 steps per configuration")
-    ap.add_argument("--steps", type=int, help="random-action steps per configuration")
-    ap.add_argument("--baseline", type=Path, help="an older profile.json to compare with")
-    return run_page(ap, run, argv, "steps", "baseline")
+    return page_main(argv, run, "profile.md", "40 steps per configuration", OPTIONS)
 
 
 if __name__ == "__main__":

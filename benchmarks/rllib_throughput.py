@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from benchmarks.common import OUT, REPO, headless, parser, table, write
+from benchmarks.common import REPO, headless, parser, table, write
 from grasp_env.cli import out_dir_problem
 
 #: RLlib set-ups: (env runners, envs per runner). Two envs in one process is what SB3's
@@ -56,10 +56,7 @@ def rllib_rate(
 
 
 def run(
-    quick: bool = False,
-    out: Path = OUT / "rllib_throughput.md",
-    env_id: str = "FrictionlessGrasp-v0",
-    iterations: int | None = None,
+    quick: bool, out: Path, env_id: str = "FrictionlessGrasp-v0", iterations: int | None = None
 ) -> Path:
     """Measure both libraries and write the markdown page."""
     import ray

@@ -32,7 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env  # noqa: F401  (registers the env ids)
-from benchmarks.common import OUT, REPO, headless, parser, run_page, table, write
+from benchmarks.common import REPO, headless, page_main, table, write
 from benchmarks.throughput import RandomActions
 from grasp_env.envs.episode import state_arrays
 from grasp_env.kernel import step as kernel
@@ -195,7 +195,7 @@ def shell_times(kwargs: dict, steps: int, repeat: int = 5) -> dict[str, float]:
     return out
 
 
-def run(quick: bool = False, out: Path = OUT / "step_parts.md", steps: int | None = None) -> Path:
+def run(quick: bool, out: Path, steps: int | None = None) -> Path:
     """Measure every set-up of :data:`CONFIGS` and write the page."""
     headless()
     steps = steps or (200 if quick else 20_000)
@@ -242,10 +242,12 @@ def run(quick: bool = False, out: Path = OUT / "step_parts.md", steps: int | Non
     return write(out, "The parts of an env step", body)
 
 
+#: ``run``'s option on the command line: name, type, help.
+OPTIONS = (("steps", int, "random-action steps per set-up"),)
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = parser("benchmarks.step_parts", __doc__, "step_parts.md", "200 steps per set-up")
-    ap.add_argument("--steps", type=int, help="random-action steps per set-up")
-    return run_page(ap, run, argv, "steps")
+    return page_main(argv, run, "step_parts.md", "200 steps per set-up", OPTIONS)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ import numpy as np
 from gymnasium import spaces
 
 import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
-from benchmarks.common import OUT, headless, parser, run_page, table, write
+from benchmarks.common import headless, page_main, table, write
 
 BASELINES = ("LunarLander-v3", "CartPole-v1")
 #: The env configurations stepped with random actions.
@@ -177,12 +177,7 @@ def make_runners() -> tuple[list[Runner], list[str]]:
     return runners, notes
 
 
-def run(
-    quick: bool = False,
-    out: Path = OUT / "throughput.md",
-    budget: float | None = None,
-    rounds: int | None = None,
-) -> Path:
+def run(quick: bool, out: Path, budget: float | None = None, rounds: int | None = None) -> Path:
     """Run the throughput benchmark and write its markdown page."""
     headless()
     budget = budget if budget is not None else (1.0 if quick else 5.0)
@@ -237,11 +232,12 @@ def run(
     return write(out, "Env throughput (single process)", body)
 
 
+#: ``run``'s options on the command line: name, type, help.
+OPTIONS = (("budget", float, "seconds per env per round"), ("rounds", int, "rounds"))
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = parser("benchmarks.throughput", __doc__, "throughput.md", "2 rounds of 1 s per env")
-    ap.add_argument("--budget", type=float, help="seconds per env per round")
-    ap.add_argument("--rounds", type=int, help="rounds")
-    return run_page(ap, run, argv, "budget", "rounds")
+    return page_main(argv, run, "throughput.md", "2 rounds of 1 s per env", OPTIONS)
 
 
 if __name__ == "__main__":

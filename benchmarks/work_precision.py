@@ -30,11 +30,9 @@ import numpy as np
 
 import grasp_env
 from benchmarks.common import (
-    OUT,
     BudgetExceeded,
     median_time,
-    parser,
-    run_page,
+    page_main,
     table,
     time_limit,
     write,
@@ -174,8 +172,8 @@ def _target_line(rows: list[Row], solver: str, check: bool) -> str:
 
 
 def run(
-    quick: bool = False,
-    out: Path = OUT / "work_precision.md",
+    quick: bool,
+    out: Path,
     paths: int = 5,
     moves: int = 12,
     repeat: int = 3,
@@ -254,9 +252,7 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    quick = "a small grid (about 15 s)"
-    ap = parser("benchmarks.work_precision", __doc__, "work_precision.md", quick)
-    return run_page(ap, run, argv)
+    return page_main(argv, run, "work_precision.md", "a small grid (about 15 s)")
 
 
 if __name__ == "__main__":
