@@ -152,7 +152,7 @@ def run(shapes: int, steps: int, seed: int, out: Path) -> Path:
         rows.append([
             family, shapes, total["steps"], total["exceptions"], total["sim_errors"], violating,
             f"{max(r['penetration'] for r in recs):.2e}", f"{worst:.2e}",
-            f"{min(r['descent'] for r in recs):.2e}",
+            f"{min(r['descent'] for r in recs):.2e}", sum(r["wedged"] for r in recs),
         ])  # fmt: skip
         for r in recs:
             if r["exceptions"] or r["sim_errors"] or r["violating_steps"]:
@@ -163,7 +163,8 @@ def run(shapes: int, steps: int, seed: int, out: Path) -> Path:
         f"`python -m benchmarks.edge_probe --shapes {shapes} --steps {steps} --seed {seed}`: "
         "random palm-control steps on each family of the module docstring, every state "
         "checked by `grasp_env.testing.check_state` (penetration and gaps in palm widths, "
-        "residual and descent in weights).",
+        "residual and descent in weights, of the states held at first order; wedged steps: "
+        "every descent blocked at second order).",
         "",
         *table(
             [
@@ -176,6 +177,7 @@ def run(shapes: int, steps: int, seed: int, out: Path) -> Path:
                 "worst penetration",
                 "worst residual",
                 "most negative descent",
+                "wedged steps",
             ],
             rows,
         ),
