@@ -15,7 +15,9 @@ tests and the soak (``benchmarks/soak.py``) check every state they make with :fu
   tolerance exert no force along their free directions, :func:`free_rows`), and no admissible
   descent: gravity lies in the cone of the contact wrenches, to :data:`EQ_RTOL` times the
   weight, once contacts dependent to tolerance are made exactly dependent
-  (:func:`free_rows`, docs/conventions.md, *Mechanics notes*).
+  (:func:`free_rows`, docs/conventions.md, *Mechanics notes*), unless every descent is
+  blocked at second order by the contacts' curvature (:func:`wedged`, docs/simulator.md,
+  *Wedged*), with forces then the closest to balancing the object.
 """
 
 from __future__ import annotations
