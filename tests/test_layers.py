@@ -39,7 +39,7 @@ LAYERS = {
             "grip_branches",
             "provenance",
         ),
-        ("callbacks", "scripted", "rllib_policy", "rllib_config", "rllib_training"),
+        ("callbacks", "scripted_policy", "scripted", "rllib_policy", "rllib_config", "rllib_training"),
         ("planner_base", "planner_agents"),
         ("models",),
         ("episodes", "summary", "sweep_page", "expert", "cloning", "imitation_page"),
