@@ -35,7 +35,6 @@ import math
 import numpy as np
 
 from grasp_env.arguments import number, real_vector
-from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.core.state import State, require_state
 from grasp_env.errors import SolverError
@@ -79,14 +78,9 @@ def contact_edge_rows(scene, pose, hand, points, normals, bodies, dh):
     if len(bodies) == 0 or size == 0.0:
         return None
     dh = dh / size  # only the direction matters; so no magnitude overflows
-    poses = kin.body_poses_W(scene, hand)
-    twists = kin.body_twists_W(scene, hand, dh)
-    velocities = np.zeros((len(bodies), 2))
-    for i, b in enumerate(bodies):
-        if b != geo.SUPPORT:
-            r = points[i] - poses[b - 1, :2]
-            t = twists[b - 1]
-            velocities[i] = (t[0] - t[2] * r[1], t[1] + t[2] * r[0])
+    velocities = np.array(
+        [kin.point_velocity_W(scene, hand, dh, b, p) for b, p in zip(bodies, points, strict=True)]
+    )
     speed = float(np.max(np.hypot(velocities[:, 0], velocities[:, 1])))
     if speed == 0.0:
         return None
