@@ -9,7 +9,10 @@ types), step_times (the step-time tail on adversarial shapes), ppo (PPO training
 ``ppo_throughput.py``; left out of ``--quick`` unless named with ``--only``), scripted_speedup
 (the scripted policy's episode rate against the simulator before its compiled core), step_parts
 (the env's shell and the compiled move timed apart, unprofiled), batched (the batched env of
-``gymnasium.make_vec`` against N and threads, resets, and where a batched step's time goes)."""
+``gymnasium.make_vec`` against N and threads, resets, and where a batched step's time goes),
+bundled (the planner and the scripted policy on every bundled scene, ``bundled_scenes.py``;
+left out of ``--quick``), targets (last: every target the pages in the output folder state,
+gathered on ``targets.md``)."""
 
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ from pathlib import Path
 from benchmarks import (
     batched,
     blas_variation,
+    bundled_scenes,
     memory,
     planner_shapes,
     ppo_throughput,
@@ -27,6 +31,7 @@ from benchmarks import (
     scripted_speedup,
     step_parts,
     step_times,
+    targets,
     throughput,
     work_precision,
 )
@@ -52,8 +57,12 @@ SUITE = {
         budget=3.0 if quick else 20.0, rounds=2 if quick else 3, out=out / "scripted_speedup.md"
     ),
     "batched": lambda quick, out: batched.run(quick, out / "batched.md"),
+    "bundled": lambda quick, out: bundled_scenes.run(out / "bundled_scenes.md"),
+    "targets": lambda quick, out: targets.run(out, out / targets.PAGE_NAME),
 }
-QUICK_SKIP = ("ppo",)  #: about 90 s even on its smallest budget
+#: Left out of ``--quick`` unless named with ``--only``: ppo about 90 s even on its smallest
+#: budget, bundled a minute or two (every bundled scene's whole plan and episodes).
+QUICK_SKIP = ("ppo", "bundled")
 #: OpenBLAS core types of ``--quick``'s blas_variation (the full suite runs all of them).
 QUICK_CORE_TYPES = CORE_TYPES[:2]
 

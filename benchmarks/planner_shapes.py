@@ -28,6 +28,9 @@ from pathlib import Path
 from benchmarks.common import BudgetExceeded, headless, parser, table, time_limit, write
 
 SUITES = ("heldout", "wide", "small")
+#: Targets of every suite: the share of tippable shapes lifted, and a plan's CPU seconds
+#: (median and largest, over the tippable shapes).
+LIFTED_TARGET, MEDIAN_CPU_TARGET, MAX_CPU_TARGET = 0.95, 0.5, 10.0
 #: The suites whose shapes are the env's (``agents.episodes.SHAPE_SUITES``), which ``--env``
 #: runs the scripted policy on.
 ENV_SUITES = ("heldout", "wide")
@@ -202,6 +205,33 @@ def _groups(plans: list[dict]) -> Iterator[tuple[str, str, tuple[int, int]]]:
             yield suite, name, (sum(_lifted(r) for r in group), len(group))
 
 
+def _targets(plans: list[dict]) -> list[str]:
+    """A line per suite and target: the share of tippable shapes lifted, a plan's median
+    and largest CPU time."""
+
+    def verdict(ok: bool) -> str:
+        return "met" if ok else "not met"
+
+    lines = []
+    for suite, mine in _by_suite(plans):
+        tippable = [r for r in mine if r["tippable"]]
+        if not tippable:
+            continue
+        lifted = sum(_lifted(r) for r in tippable)
+        share = lifted / len(tippable)
+        cpu = [r["cpu"] for r in tippable]
+        median, most = statistics.median(cpu), max(cpu)
+        lines += [
+            f"* target: >= {LIFTED_TARGET:.0%} of tippable `{suite}` shapes lifted: "
+            f"**{lifted}/{len(tippable)} = {share:.0%}** ({verdict(share >= LIFTED_TARGET)})",
+            f"* target: median plan on `{suite}` <= {MEDIAN_CPU_TARGET:g} s of CPU: "
+            f"**{median:.2f} s** ({verdict(median <= MEDIAN_CPU_TARGET)})",
+            f"* target: largest plan on `{suite}` <= {MAX_CPU_TARGET:g} s of CPU: "
+            f"**{most:.2f} s** ({verdict(most <= MAX_CPU_TARGET)})",
+        ]
+    return lines
+
+
 def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]:
     """The page's body: per suite, the outcome counts, failure reasons and CPU times, then the
     scripted policy through the env, then every failure."""
@@ -247,6 +277,7 @@ def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]
         rows,
         align="lrrrrrrr",
     )
+    body += ["", *_targets(plans)]
     body += ["", "Tippable shapes lifted by vertex count (and, in `small`, by band):", ""]
     body += table(
         ["suite", "group", "tippable lifted"],
