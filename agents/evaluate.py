@@ -1,7 +1,7 @@
 """Compare the scripted planner, trained PPO agents and a random policy on fixed seeds.
 
     python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
-        [--out DIR] [--workers 2] [--results-page docs/results.md]
+        [--out DIR] [--workers 2] [--results-page docs/results.md [--readme README.md]]
         [--friction 0,0.1,0.2,0.3,0.4 [--friction-page docs/friction_results.md]]
         [--uncertainty 0,0.005,0.01,0.02 [--uncertainty-page docs/uncertainty_results.md]]
 
@@ -16,7 +16,8 @@ policy meets the same scenes, starts and seeds. Writes
 ``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
 printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
 into ``--out``; with ``--results-page PATH`` also the results page (``docs/results.md``: the
-tables with the date, the commit and the command), which is written nowhere else.
+tables with the date, the commit and the command), which is written nowhere else, and with
+``--readme PATH`` that README's results block from it (``agents.summary.readme_results``).
 ``--friction`` plays every episode at each listed Coulomb coefficient (the env's
 ``friction``: a step friction can resist jams); the summary has a row per coefficient and
 ``friction.png`` plots success against it, and ``--friction-page PATH`` writes that table
@@ -56,7 +57,17 @@ from agents.episodes import (
     run_job,
 )
 from agents.provenance import git_commit, utc_now
-from agents.summary import bar_chart, markdown_table, results_page, summarize, write_csv, write_gif
+from agents.summary import (
+    README_BEGIN,
+    README_END,
+    bar_chart,
+    markdown_table,
+    results_page,
+    summarize,
+    update_readme,
+    write_csv,
+    write_gif,
+)
 from agents.sweep_page import FRICTION, UNCERTAINTY, Sweep, sweep_page, sweep_plot
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
@@ -163,6 +174,17 @@ def results_page_problem(path: Path) -> str | None:
     return None
 
 
+def readme_problem(path: Path) -> str | None:
+    """Why the README's results block cannot be written at ``path``, or None: checked
+    before any episode runs."""
+    if not path.is_file():
+        return f"{path} is not a file"
+    text = path.read_text()
+    if not 0 <= text.find(README_BEGIN) < text.find(README_END):
+        return f"{path} has no results block (the lines {README_BEGIN!r} ... {README_END!r})"
+    return None
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = argparse.ArgumentParser(
@@ -247,6 +269,12 @@ def main(argv: list[str] | None = None) -> None:
         "default: none, no page is written)",
     )
     parser.add_argument(
+        "--readme",
+        metavar="PATH",
+        help="with --results-page, also rewrite the results block of that README (README.md "
+        "is the shipped one) from the page: the lift and perturbed tables",
+    )
+    parser.add_argument(
         "--no-scripted", action="store_true", help="leave the planner out (default: off)"
     )
     for sweep, parse, metavar, what in (
@@ -280,6 +308,10 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--out {problem}")
     if args.results_page and (problem := results_page_problem(Path(args.results_page))):
         parser.error(f"--results-page {problem}")
+    if args.readme and not args.results_page:
+        parser.error("--readme needs --results-page (the block is written from that page)")
+    if args.readme and (problem := readme_problem(Path(args.readme))):
+        parser.error(f"--readme {problem}")
     pages = [
         (sweep, levels, Path(page))
         for sweep, levels, page in (
@@ -314,6 +346,10 @@ def main(argv: list[str] | None = None) -> None:
         page = results_page(rows, command, utc_now(), git_commit())
         Path(args.results_page).write_text(page)
         print(f"wrote {args.results_page}")
+    if args.readme:
+        readme, page = Path(args.readme), Path(args.results_page)
+        update_readme(readme, page, os.path.relpath(page, readme.resolve().parent))
+        print(f"wrote the results block of {args.readme}")
     for sweep, _, page in pages:
         write_sweep_page(page, rows, sweep, command)
 

@@ -210,6 +210,53 @@ def results_page(rows: list[dict[str, Any]], command: str, date: str, commit: st
     return "\n".join(lines) + "\n"
 
 
+#: The suites of the results page that the README shows, and the markers of its block.
+README_SUITES = ("lift", "perturbed")
+README_BEGIN = (
+    "<!-- Results block: written from the results page by agents.evaluate --readme; "
+    "regenerate rather than edit. -->"
+)
+README_END = "<!-- End of the results block. -->"
+
+
+def readme_results(page: str, link: str, suites: tuple[str, ...] = README_SUITES) -> str:
+    """The README's results block, taken from the results page's text ``page`` (linked as
+    ``link``): where and when it was generated, which rows are network-only, and the tables
+    of ``suites``, one a suite, rows as the page has them."""
+    lines = page.splitlines()
+    generated = next(line for line in lines if line.startswith("Generated on "))
+    header = next(i for i, line in enumerate(lines) if line.startswith("| suite | policy |"))
+    out = [
+        README_BEGIN,
+        f"From [{link.rsplit('/', 1)[-1]}]({link}), "
+        + generated[0].lower()
+        + generated[1:].removesuffix(" by:")
+        + ".",
+        "",
+        *(line for line in lines if line.startswith("Network-only rows:")),
+    ]
+    for suite in suites:
+        rows = [line for line in lines if line.startswith(f"| {suite} |")]
+        if rows:
+            out += ["", *lines[header : header + 2], *rows]
+    return "\n".join([*out, README_END])
+
+
+def update_readme(readme: Path, page: Path, link: str) -> None:
+    """Replace the results block of ``readme`` (between :data:`README_BEGIN` and
+    :data:`README_END`) with :func:`readme_results` of ``page``.
+
+    Raises:
+        ValueError: ``readme`` has no such block.
+    """
+    text = readme.read_text()
+    begin, end = text.find(README_BEGIN), text.find(README_END)
+    if begin < 0 or end < begin:
+        raise ValueError(f"{readme} has no results block ({README_BEGIN!r} ... {README_END!r})")
+    block = readme_results(page.read_text(), link)
+    readme.write_text(text[:begin] + block + text[end + len(README_END) :])
+
+
 def _names(names: list[str]) -> str:
     return ", ".join(f"`{n}`" for n in names) if names else "none"
 

@@ -101,6 +101,7 @@ def plan_one(suite: str, k: int, timeout: float) -> dict:
     from grasp_env import planning
     from grasp_env.mechanics import closure as mech
     from grasp_env.mechanics.tippability import tippability_regions
+    from grasp_env.planning.grasp import has_face_turned_down
 
     scene = suite_scene(suite, k)
     left, right = tippability_regions(scene)
@@ -110,6 +111,7 @@ def plan_one(suite: str, k: int, timeout: float) -> dict:
         "vertices": len(scene.object.vertices_B),
         "band": band_name(SMALL_BANDS[k % len(SMALL_BANDS)]) if suite == "small" else "",
         "tippable": not (left.is_empty and right.is_empty),
+        "face_down": has_face_turned_down(scene),
     }
     try:
         with time_limit(timeout):
@@ -205,6 +207,23 @@ def _groups(plans: list[dict]) -> Iterator[tuple[str, str, tuple[int, int]]]:
             yield suite, name, (sum(_lifted(r) for r in group), len(group))
 
 
+def _no_face_down(plans: list[dict]) -> Iterator[list[object]]:
+    """Per suite: the tippable shapes with no face turned down (by vertex count), how many
+    of them are lifted, and how many of the suite's failures they are."""
+    for suite, mine in _by_suite(plans):
+        tippable = [r for r in mine if r["tippable"]]
+        flat = [r for r in tippable if not r["face_down"]]
+        counts = Counter(r["vertices"] for r in flat)
+        by_count = ", ".join(f"{n} with {v} vertices" for v, n in sorted(counts.items()))
+        fails = [r for r in tippable if not _lifted(r)]
+        yield [
+            suite,
+            f"{len(flat)} ({by_count})" if flat else "0",
+            sum(_lifted(r) for r in flat),
+            f"{sum(not r['face_down'] for r in fails)} of {len(fails)}",
+        ]
+
+
 def _targets(plans: list[dict]) -> list[str]:
     """A line per suite and target: the share of tippable shapes lifted, a plan's median
     and largest CPU time."""
@@ -283,6 +302,17 @@ def report(plans: list[dict], episodes: list[dict], timeout: float) -> list[str]
         ["suite", "group", "tippable lifted"],
         [[suite, group, _wilson(*counts)] for suite, group, counts in _groups(plans)],
         align="lll",
+    )
+    body += [
+        "",
+        "Tippable shapes with no face turned down besides their supporting edge (no "
+        "overhang a finger can push up on), the class the planner fails on:",
+        "",
+    ]
+    body += table(
+        ["suite", "tippable with no face turned down", "of them lifted", "failures among them"],
+        list(_no_face_down(plans)),
+        align="lrrr",
     )
     fails = [r for r in plans if r["tippable"] and not _lifted(r)]
     reasons = Counter((r["suite"], _reason(r)) for r in fails)

@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 EXPLORE_MOVES = 20000
 
 #: What a stuck plan's message says of an object whose faces all turn up or sideways but its
-#: supporting edge (:func:`_faces_down`): the class of object the planner fails on.
+#: supporting edge (:func:`has_face_turned_down`): the class of object the planner fails on.
 NO_FACE_DOWN = "no face but the supporting edge faces down"
 
 
@@ -169,12 +169,12 @@ def _stuck_reason(sim: Simulator, tried: list[tuple[str, State, PhaseResult]], r
     placement at all, also whether the regions lie lower than the fingers are thick; and
     whether the object has a face turned down besides its supporting edge."""
     why = _placement_reason(sim, tried, regions)
-    if not _faces_down(sim.scene):
+    if not has_face_turned_down(sim.scene):
         why += f" ({NO_FACE_DOWN}: only a fingertip under a raised corner can push the object up)"
     return why
 
 
-def _faces_down(scene) -> bool:
+def has_face_turned_down(scene) -> bool:
     """Whether a face of the object at rest other than its supporting edge faces down (its
     inward normal points up): one a finger can push up on without first tipping the object."""
     v = scene.object.vertices_W0

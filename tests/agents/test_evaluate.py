@@ -178,6 +178,43 @@ def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys)
         assert message in capsys.readouterr().err
 
 
+def test_readme_block_is_written_from_the_page(tmp_path, monkeypatch, capsys):
+    rows = sm.summarize(EPISODES, TEST_TIMES)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: rows)
+    monkeypatch.setattr(ev, "default_policies", lambda *a: [])
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# Title\n\nbefore\n\n{sm.README_BEGIN}\nold\n{sm.README_END}\n\nafter\n")
+    page = tmp_path / "docs" / "results.md"
+    page.parent.mkdir()
+    argv = ["--models", "--out", str(tmp_path / "eval"), "--results-page", str(page)]
+    ev.main([*argv, "--readme", str(readme)])
+    text = readme.read_text()
+    assert text.startswith("# Title\n\nbefore\n\n") and text.endswith("\n\nafter\n")
+    assert "old" not in text
+    block = text[text.index(sm.README_BEGIN) : text.index(sm.README_END)]
+    assert "From [results.md](docs/results.md), generated on " in block
+    assert "Network-only rows: `random`." in block
+    page_rows = [line for line in page.read_text().splitlines() if line.startswith("| lift |")]
+    assert page_rows and all(row in block.splitlines() for row in page_rows)
+    assert "| fig13 |" not in block  # the README shows the lift and perturbed suites only
+    for bad, message in (
+        ([*argv, "--readme", str(tmp_path / "none.md")], "is not a file"),
+        ([*argv, "--readme", str(page)], "has no results block"),
+        (["--models", "--readme", str(readme)], "needs --results-page"),
+    ):
+        with pytest.raises(SystemExit):
+            ev.main(bad)
+        assert message in capsys.readouterr().err
+
+
+def test_shipped_readme_shows_the_shipped_results_page():
+    """The README's results block is what ``--readme`` writes from ``docs/results.md``."""
+    text = (REPO / "README.md").read_text()
+    block = text[text.index(sm.README_BEGIN) : text.index(sm.README_END) + len(sm.README_END)]
+    page = (REPO / "docs" / "results.md").read_text()
+    assert block == sm.readme_results(page, "docs/results.md")
+
+
 def test_help_shows_every_default(capsys):
     with pytest.raises(SystemExit):
         ev.main(["--help"])

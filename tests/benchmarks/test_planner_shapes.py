@@ -48,3 +48,22 @@ def test_a_failure_reason_keeps_whether_the_object_has_a_face_turned_down():
     assert planner_shapes._reason(row) == (
         "fixed-palm lifting stuck from every placement; no face but the supporting edge faces down"
     )
+
+
+def test_shapes_with_no_face_down_are_counted_by_suite():
+    def plan(k, vertices, face_down, lifted, tippable=True):
+        status = "form_closure" if lifted else "stuck"
+        return {"suite": "small", "k": k, "vertices": vertices, "face_down": face_down,
+                "tippable": tippable, "status": status, "checked": lifted}  # fmt: skip
+
+    plans = [
+        plan(0, 3, False, False),
+        plan(1, 3, False, True),
+        plan(2, 4, False, False),
+        plan(3, 5, True, False),
+        plan(4, 5, True, True),
+        plan(5, 3, False, False, tippable=False),  # not tippable: left out
+    ]
+    assert list(planner_shapes._no_face_down(plans)) == [
+        ["small", "3 (2 with 3 vertices, 1 with 4 vertices)", 1, "2 of 3"]
+    ]

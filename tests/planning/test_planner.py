@@ -395,8 +395,10 @@ def test_a_stuck_object_without_a_face_turned_down_is_said_to_need_a_raised_corn
     assert "(no face but the supporting edge faces down: only a fingertip under a raised" in (
         plan.message
     )
-    obtuse = planning.grasp._faces_down(_scene_with_object([[-0.1, 0.0], [0.1, 0.0], [0.2, 0.2]]))
-    assert obtuse and not planning.grasp._faces_down(_scene_with_object(SMALL_TRIANGLE))
+    obtuse = planning.grasp.has_face_turned_down(
+        _scene_with_object([[-0.1, 0.0], [0.1, 0.0], [0.2, 0.2]])
+    )
+    assert obtuse and not planning.grasp.has_face_turned_down(_scene_with_object(SMALL_TRIANGLE))
 
 
 @pytest.mark.xfail(
