@@ -51,8 +51,11 @@ SHAPE_SUITES = {
 SCRIPTED_KWARGS = {"palm_control": True, "start": "scene"}
 #: Env set-up of the random policy: the paper's (palm fixed where the scene puts it).
 RANDOM_KWARGS = {"palm_control": False, "start": "scene"}
-#: Env kwargs that a suite sets and a policy's own set-up must not override.
-SUITE_KEYS = ("scene", "shape_randomizer", "start", "time_limit", "shape_pool")
+#: Env kwargs that a suite or a sweep's level sets and a policy's own set-up must not override
+#: (a model trained with ``uncertainty`` or ``friction`` meets every level of the sweep).
+SUITE_KEYS = (
+    "scene", "shape_randomizer", "start", "time_limit", "shape_pool", "friction", "uncertainty",
+)  # fmt: skip
 GIF_SCENE, GIF_SIZE, GIF_EVERY = "fig13", (320, 240), 2
 #: What each kind of policy calls at test time (``agents.models.TEST_TIMES``); a ``"ppo"``
 #: model's is its training entry's (``agents.models.entry_test_time``). An RLlib checkpoint

@@ -667,3 +667,21 @@ def test_evaluation_env_gets_the_entrys_task_kwargs(tmp_path):
     assert model.observation_space.shape == (24 + 3 * 8,)
     (run,) = (tmp_path / "runs" / "ppo").iterdir()
     assert len(np.load(run / "evaluations.npz")["results"]) == 1  # the evaluation ran
+
+
+def test_a_model_trained_with_uncertainty_meets_every_level_of_a_sweep(tmp_path):
+    """The sweep sets ``uncertainty`` and ``friction``; a model's training values of them do
+    not leak into its evaluation env (at the sweep's level 0 it plays the exact object)."""
+    model_dir = tmp_path / "lift_uncertain"
+    shutil.copytree(models.MODEL_DIR / "lift_palm", model_dir)
+    config = yaml.safe_load((model_dir / "config.yml").read_text())
+    config[LIFT_ENV_ID]["env_kwargs"] |= {"uncertainty": 0.02, "friction": 0.1}
+    (model_dir / "config.yml").write_text(yaml.safe_dump(config))
+    _, _, _, entry = models.load_agent(model_dir)
+    assert entry["env_kwargs"]["uncertainty"] == 0.02  # the model did train with it
+    spec = ep.ppo_spec(model_dir)
+    assert spec.env_kwargs == {"palm_control": True, "hand_features": True}
+    exact = ep.run_episode(spec, "lift", "", 1_000_000, 5)
+    uncertain = ep.run_episode(spec, "lift", "", 1_000_000, 5, uncertainty=0.02)
+    assert exact.uncertainty == 0.0 and uncertain.uncertainty == 0.02
+    assert not exact.error and not uncertain.error
