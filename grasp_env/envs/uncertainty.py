@@ -4,9 +4,12 @@ policy and the planner are told (the env's ``uncertainty``).
 Each vertex of the nominal object at its scene placement moves by independent normal noise
 of standard deviation ``sds["vertices"]`` palm widths in x and y, except that the vertices on
 the support move along it only (their y is kept), so the object rests on the same edge; the
-mass is scaled by ``1 + sds["mass"] * z`` with ``z`` standard normal. A draw is redrawn
-(up to :data:`MAX_PERTURBATION_TRIES` times) unless the mass stays positive, the polygon
-stays strictly convex and clear of the hand (the scene's validation), its centroid stays
+object is the convex hull of the moved vertices (a vertex the noise moves inside the others'
+hull is dropped; where every moved vertex is on the hull the polygon keeps their order, its
+first vertex the nominal first). The mass is scaled by ``1 + sds["mass"] * z`` with ``z``
+standard normal. A draw is redrawn (up to :data:`MAX_PERTURBATION_TRIES` times) unless the
+mass stays positive, the hull is a valid object clear of the hand (the scene's validation:
+strictly convex, no vertex below the support, no edge too short), its centroid stays
 strictly over its resting edge (so it rests there), and ``problem`` names nothing. Only the
 components with a positive standard deviation draw from the generator.
 """
@@ -16,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from grasp_env.core.scene import Scene
 from grasp_env.core.scene_loading import load_scene
@@ -33,10 +37,22 @@ MAX_PERTURBATION_TRIES = 100
 SUPPORT_TOL = 1e-12
 
 
-def perturbation_problem(scene: Scene, resting: np.ndarray) -> str | None:
-    """Why a perturbed scene's object does not rest on the vertices ``resting`` (a mask):
-    none of them, one only, or its centroid not strictly between them (None if it rests)."""
-    x = scene.object.vertices_W0[resting, 0]
+def hull(points: np.ndarray) -> np.ndarray | None:
+    """The convex hull of ``points`` (shape (n, 2)) counter-clockwise from the point of
+    lowest index on it, so that points already in convex counter-clockwise order come back
+    as they are; None where the points span no area."""
+    try:
+        order = ConvexHull(points).vertices  # counter-clockwise in 2-D
+    except QhullError:
+        return None
+    return points[np.roll(order, -int(np.argmin(order)))]
+
+
+def perturbation_problem(scene: Scene) -> str | None:
+    """Why a perturbed scene's object does not rest on the support: no edge on it, or its
+    centroid not strictly over that edge (None if it rests)."""
+    v = scene.object.vertices_W0
+    x = v[v[:, 1] <= SUPPORT_TOL * scene.palm.width, 0]
     cx = float(scene.object.start_pose[0])
     if len(x) < 2 or not x.min() < cx < x.max():
         return f"its centroid x = {cx!r} is not over its resting edge (x in {x.tolist()})"
@@ -67,7 +83,10 @@ def perturbed_scene(
         if sds["vertices"] > 0.0:
             noise = rng.normal(0.0, sds["vertices"] * w, nominal.shape)
             noise[resting, 1] = 0.0
-            v += noise
+            v = hull(v + noise)
+            if v is None:
+                last = "its vertices span no area"
+                continue
         if sds["mass"] > 0.0:
             mass *= 1.0 + sds["mass"] * rng.standard_normal()
         if mass <= 0.0:
@@ -79,7 +98,7 @@ def perturbed_scene(
         except SceneError as exc:
             last = str(exc)
             continue
-        last = perturbation_problem(out, resting) or (problem(out) if problem else None)
+        last = perturbation_problem(out) or (problem(out) if problem else None)
         if last is None:
             return out
     raise ValueError(

@@ -15,10 +15,12 @@ import numpy as np
 import pytest
 from vector_checks import lockstep
 
+import grasp_env
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
 from grasp_env.envs.checks import placement_problem
-from grasp_env.envs.uncertainty import MAX_PERTURBATION_TRIES
+from grasp_env.envs.shapes import scene_to_dict
+from grasp_env.envs.uncertainty import MAX_PERTURBATION_TRIES, perturbed_scene
 from grasp_env.kernel.observation import POSE_ENTRIES, hand_block_at
 
 SIGMA = 0.01
@@ -179,3 +181,36 @@ def test_an_unknown_key_is_refused_by_name() -> None:
 def test_a_scene_no_perturbation_fits_is_refused_at_make() -> None:
     with pytest.raises(ValueError, match=rf"uncertainty.*out of {MAX_PERTURBATION_TRIES}"):
         gym.make("FrictionlessGrasp-v0", uncertainty=1.0)
+
+
+def test_a_vertex_moved_inside_the_others_is_dropped_from_the_hull() -> None:
+    """A small octagon (vertices 0.03 palm widths apart) at 0.02: the moved vertices often
+    leave convex position, and the object is their convex hull, checked independently: its
+    vertices are moved vertices, and every moved vertex lies in it."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 9)[:-1] - np.pi / 8.0
+    octagon = 0.04 * np.c_[np.cos(angles), np.sin(angles)]
+    octagon[:, 1] -= octagon[:, 1].min()
+    octagon[np.abs(octagon[:, 1]) < 1e-15, 1] = 0.0
+    scene = grasp_env.load_scene(
+        {**scene_to_dict(grasp_env.load_scene("fig13")), "object": {"vertices": octagon.tolist()}}
+    )
+    nominal = scene.object.vertices_W0
+    resting = nominal[:, 1] == 0.0
+    dropped = 0
+    for seed in range(40):
+        out = perturbed_scene(np.random.default_rng(seed), scene, {"vertices": 0.02, "mass": 0.0})
+        noise = np.random.default_rng(seed).normal(0.0, 0.02, nominal.shape)  # the first draw
+        noise[resting, 1] = 0.0
+        moved = nominal + noise
+        v = out.object.vertices_W0
+        if len(v) == len(nominal) and np.array_equal(v, moved):
+            continue  # the first draw was convex: kept as drawn, in its order
+        if not all(any(np.array_equal(p, q) for q in moved) for p in v):
+            continue  # the first draw was refused for another reason and redrawn
+        dropped += 1
+        assert len(v) < len(nominal) and geo.is_convex_ccw(v)
+        edges = np.roll(v, -1, axis=0) - v
+        for p in moved:  # inside or on every edge of the counter-clockwise hull
+            cross = edges[:, 0] * (p - v)[:, 1] - edges[:, 1] * (p - v)[:, 0]
+            assert np.all(cross >= -1e-15)
+    assert dropped >= 5
