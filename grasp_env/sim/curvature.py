@@ -9,6 +9,10 @@ does not depend on the second-order correction of the path (``mu . V a = 0``). W
 negative, by more than the tolerance resolves over the object's size, no correction keeps
 every gap open (Farkas), and ``d`` is no way down. An object whose every first-order
 descent is so blocked is wedged: held where it is (docs/simulator.md, *Wedged*).
+
+The same curvature decides whether an equilibrium on one or two contacts is a rest at all
+(:func:`unstable`): weighted by the forces instead of a self-stress, it is the potential
+energy's second derivative along the poses that keep the contacts closed.
 """
 
 from __future__ import annotations
@@ -44,6 +48,47 @@ def gap_hessians(P: np.ndarray, N: np.ndarray, kinds: np.ndarray, com, size: flo
         else:
             H[i, 2, 2] = -nr / size
     return H
+
+
+@njit(cache=CACHE)
+def unstable(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> bool:
+    """Whether the object, in equilibrium on the contacts ``keys``, sits at no minimum of
+    its potential energy along the poses that keep them closed: some unit displacement
+    ``u`` free of their rows has ``lam . kappa(u) > 2 eta``, ``lam`` the forces (summing to
+    1) and ``kappa`` as in :func:`wedged`.
+
+    Along such a path the gaps' second-order change ``kappa(u)`` is taken up by a correction
+    ``c`` with ``V c = -kappa(u)``, and the potential changes by ``g . c = lam . V c =
+    -lam . kappa(u)``: it falls both ways, by more than the tolerance resolves over the
+    object's size (a potential maximum or saddle: an object next to it moves away). A
+    curvature the tolerance does not resolve counts as flat, as in :func:`wedged`."""
+    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
+    V = constraint_matrix(P, N, com)
+    for i in range(V.shape[0]):
+        V[i, 2] /= model.size
+    eta = model.tol / model.size
+    directions, members = dependences(V, eta)
+    Vs = project(V, directions, members)
+    lam, _ = dense.nnls(Vs.T.copy(), np.array([0.0, 1.0, 0.0]))
+    total = lam.sum()
+    if total <= 0.0:
+        return False
+    _, sv, Z = dense.svd(Vs)
+    rank = 0
+    for j in range(3):
+        if sv[j] > eta * sv[0]:
+            rank += 1
+    B = Z[:, rank:].copy()  # the directions free of the rows: one or two (rank >= 1)
+    H = gap_hessians(P, N, keys[:, 1], com, model.size)
+    Hm = np.zeros((3, 3))
+    for i in range(V.shape[0]):
+        Hm += (lam[i] / total) * H[i]
+    F = dense.matmul(dense.matmul(B.T.copy(), Hm), B)
+    if F.shape[0] == 1:
+        top = F[0, 0]
+    else:  # the larger eigenvalue of the symmetric 2 x 2 form
+        top = 0.5 * (F[0, 0] + F[1, 1]) + math.hypot(0.5 * (F[0, 0] - F[1, 1]), F[0, 1])
+    return top > 2.0 * eta
 
 
 @njit(cache=CACHE)

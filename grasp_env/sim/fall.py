@@ -18,6 +18,7 @@ from numba import njit
 from grasp_env.compiled import CACHE
 from grasp_env.errors import SimulationError, WorkLimitError
 from grasp_env.sim import consistency, contact_sets, detection
+from grasp_env.sim.curvature import unstable
 from grasp_env.sim.dependence import free_rows
 from grasp_env.sim.equilibrium import ROUNDING, held, held_or_wedged
 from grasp_env.sim.events import FALL_END, FALL_START
@@ -139,7 +140,11 @@ def _terms(model, q: np.ndarray, h: np.ndarray, E: np.ndarray) -> np.ndarray:
 def cradle(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray, solves):
     """The rest pose of a fall that has nearly come to rest on one or two contacts: their
     equilibrium pose by Newton, if it lies within one fall step, no higher, with nothing
-    violated, and the contacts there hold the object: ``(q_rest, found)``."""
+    violated, the contacts there hold the object, and it is a minimum of the potential
+    energy along their poses: ``(q_rest, found)``. (Newton finds a maximum as readily, the
+    one a fall that starts next to it has just left: a near-circle rolling between two
+    finger faces lies within the tolerance of its height there, and another contact touching
+    there holds it, with a force of zero.)"""
     if not 0 < keys.shape[0] < 3:
         return q, False
     q_rest, ok = newton_held(model, q, h, keys, solves)
@@ -150,6 +155,8 @@ def cradle(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray, solves):
     if geometry_violation(model, q_rest, h, keys) > model.tol:
         return q, False
     if not held_here(model, q_rest, h, 1e-12 * model.weight):
+        return q, False
+    if unstable(model, place(model, q_rest, h), q_rest[:2], keys):
         return q, False
     return q_rest, True
 

@@ -1,5 +1,6 @@
 """Descents blocked at second order (``grasp_env.sim.curvature``, and the checker's own
-``grasp_env.testing.wedged``), against closed forms and the soak's failures.
+``grasp_env.testing.wedged``), and rests that are no potential minimum, against closed forms
+and the soak's failures.
 
 Two contacts whose lines of action coincide (two fingertips on opposite faces, or two object
 vertices on two parallel finger faces) leave the object free to first order to turn about
@@ -83,8 +84,13 @@ def test_a_pinch_with_a_vertex_on_the_support(kind: str, held: bool) -> None:
 
 
 #: Soak shapes (seed 6) whose moves ended in ``sim_error`` before: pinches at a fold
-#: (slivers, near-parallel quadrilaterals, near-circles) and a bulged side along a finger.
-SOAK_FAILURES = {37: 700, 28: 620, 100: 870, 6: 30, 77: 250, 374: 810}
+#: (slivers, near-parallel quadrilaterals, near-circles), a bulged side along a finger, and
+#: near-circles whose fall came back to a potential maximum (365, 368, 387, 979: a cradle
+#: is a minimum, ``grasp_env.sim.curvature.unstable``).
+SOAK_FAILURES = {
+    37: 700, 28: 620, 100: 870, 6: 30, 77: 250, 374: 810, 365: 520, 368: 820, 387: 610,
+    979: 420,
+}  # fmt: skip
 
 
 @pytest.mark.parametrize("index", sorted(SOAK_FAILURES))

@@ -813,6 +813,63 @@ def test_events_cycling_at_one_point_end_the_move_early() -> None:
     assert_invariants(end, tol_of(sim), "jammed at the boundary of equilibrium")
 
 
+#: A near-circle (soak seed 6, shape 365), its palm, fingers and density as the soak drew them.
+NEAR_CIRCLE = {
+    "name": "stress",
+    "palm": {"width": 1.0, "thickness": 0.15, "pose": [-0.0015772888424103182, 0.71, 0.0]},
+    "fingers": [
+        {"length": 0.6, "thickness": 0.05, "angle": -HALF_PI},
+        {"length": 0.7, "thickness": 0.05, "angle": -HALF_PI},
+    ],
+    "object": {
+        "vertices": [
+            [-0.11576337377032639, 0.0],
+            [0.11617343576038054, 0.0],
+            [0.2713351263086484, 0.1289507295288007],
+            [0.3068071123689645, 0.34655963305504983],
+            [0.19084762596457164, 0.5224265676235489],
+            [0.009861035236314881, 0.5845544149100176],
+            [-0.2072278433058991, 0.5089948566345823],
+            [-0.30996169005378515, 0.3275620194895235],
+            [-0.2716341305863059, 0.13019381848052708],
+        ],
+        "density": 0.0024925981749921626,
+    },
+}
+
+
+def test_a_fall_does_not_come_back_to_a_potential_maximum() -> None:
+    """Regression (soak seed 6, shape 365, step 506): a near-circle held by a vertex on each
+    finger's face and one on the palm while the hand moves. At s = 0.098 the palm's force
+    reaches zero; keeping the palm makes it negative, releasing it rolls the object into the
+    palm: the two finger contacts hold the object at a maximum of its potential energy along
+    their poses, which the hand's motion destroys. Nudged past it, the object fell, rolled
+    2.6e-5 rad down its first step, and the fall's cradle (Newton on the two contacts'
+    equilibrium) took it straight back to that maximum, 2e-10 higher (within the tolerance)
+    and held there by the palm touching with zero force; the hand was nudged on by 1e-10 and
+    all of it repeated until 'no progress after 200 increments' (1288 solves). A cradle is a
+    minimum: the object rolls down the fingers away from the palm, and the move goes on to a
+    state the independent check accepts."""
+    sim = Simulator(grasp_env.load_scene(NEAR_CIRCLE))
+    pose = np.array([-0.07265695928901365, 0.3592271488259931, 0.4210263017412758])
+    hand = np.array(
+        [-0.09506054110469425, 0.6544919861705529, 0.03333601585483807, -1.0588395703872222,
+         -2.0604993980686834]
+    )  # fmt: skip
+    start = sim.settle(pose, hand)
+    np.testing.assert_array_equal(start.object_pose, pose)
+    assert contact_set(start) == [("finger1", "edge"), ("finger2", "edge"), ("finger2", "edge")]
+    assert_invariants(start, tol_of(sim), "near-circle before the move")
+    end = sim.move_hand(
+        start,
+        palm=(-0.0849326736444434, 0.6361244954021203, 0.012455567036631282),
+        fingers=(-1.0101075370152968, -2.1053185236017873),
+    )
+    assert "fall_start" in [e.kind for e in end.events]
+    assert sim.solves <= 1000, f"{sim.solves} pose solves for one move"
+    assert_invariants(end, tol_of(sim), "near-circle after the fall")
+
+
 def test_fall_with_no_admissible_step_stops_searching() -> None:
     """Regression (found by the planner's exploratory search): when no point along a fall
     step solves the contact equations, the step's bisection ran all 200 halvings (its
