@@ -18,9 +18,12 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls
 
+import grasp_env
 from benchmarks.soak import soak_shape
-from grasp_env import testing
-from grasp_env.sim.curvature import gap_hessians
+from grasp_env import Simulator, testing
+from grasp_env.sim.curvature import gap_hessians, unstable
+from grasp_env.sim.fall import touching
+from grasp_env.sim.placement import place
 
 # A pinch along the line y = 0.3 (normal n0 = (1, 0)), turned about p = (0.1, 0.3); the
 # object's centre of mass at c, its size s.
@@ -81,6 +84,39 @@ def test_a_pinch_with_a_vertex_on_the_support(kind: str, held: bool) -> None:
     assert dist > 0.1  # a first-order descent
     H = testing.gap_hessians(points, normals, kinds, C0, SIZE)
     assert testing.wedged(V, groups, H, eta, 1e-7) is held
+
+
+@pytest.mark.parametrize(
+    ("vertices", "expected"),
+    [
+        ([[0.0, 0.0], [0.1, 0.1], [0.0, 0.2], [-0.1, 0.1]], True),
+        ([[-0.1, 0.0], [0.1, 0.0], [0.1, 0.1], [-0.1, 0.1]], False),
+    ],
+    ids=["on_a_corner", "on_a_side"],
+)
+def test_a_rest_on_a_corner_is_a_potential_maximum(vertices: list, expected: bool) -> None:
+    """A square balanced on a corner, its centre of mass ``a`` above it: turned about the
+    corner by ``t`` the centre falls by ``a (1 - cos t)``, and the support's gap curves by
+    ``lam . kappa = a / size = 1`` (``size = a``), far above ``2 eta``: no rest. On a side,
+    the support's two contacts leave the object only sliding along it, which its potential
+    does not feel: flat, a rest."""
+    scene = grasp_env.load_scene(
+        {
+            "name": "rest",
+            "palm": {"width": 1.0, "thickness": 0.15, "pose": [0.0, 0.71, 0.0]},
+            "fingers": [
+                {"length": 0.6, "thickness": 0.05, "angle": -np.pi / 2},
+                {"length": 0.7, "thickness": 0.05, "angle": -np.pi / 2},
+            ],
+            "object": {"vertices": vertices, "mass": 1.0},
+        }
+    )
+    model = Simulator(scene).model
+    q = scene.object.start_pose
+    world = place(model, q, scene.initial_hand)
+    keys = touching(model, world, np.zeros((0, 4), dtype=np.int64))
+    assert keys.shape[0] == (1 if expected else 2) and np.all(keys[:, 0] == 0)  # the support
+    assert unstable(model, world, q[:2], keys) is expected
 
 
 #: Soak shapes (seed 6) whose moves ended in ``sim_error`` before: pinches at a fold
