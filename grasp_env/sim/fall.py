@@ -141,10 +141,10 @@ def cradle(model, q: np.ndarray, h: np.ndarray, keys: np.ndarray, solves):
     """The rest pose of a fall that has nearly come to rest on one or two contacts: their
     equilibrium pose by Newton, if it lies within one fall step, no higher, with nothing
     violated, the contacts there hold the object, and it is a minimum of the potential
-    energy along their poses: ``(q_rest, found)``. (Newton finds a maximum as readily, the
-    one a fall that starts next to it has just left: a near-circle rolling between two
-    finger faces lies within the tolerance of its height there, and another contact touching
-    there holds it, with a force of zero.)"""
+    energy along their poses (:func:`grasp_env.sim.curvature.unstable`): ``(q_rest,
+    found)``. Newton finds a maximum as readily, the very one a fall released next to it has
+    just left, within the tolerance of its height and held there by a contact touching with
+    zero force."""
     if not 0 < keys.shape[0] < 3:
         return q, False
     q_rest, ok = newton_held(model, q, h, keys, solves)
