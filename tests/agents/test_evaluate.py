@@ -26,6 +26,7 @@ REPO = Path(__file__).resolve().parents[2]
 CONFIG_TEST_TIMES = {
     "ppo.yml": "network",
     "ppo_batched.yml": "network",
+    "ppo_uncertainty.yml": "network",
     "ppo_residual.yml": "planner",
     "ppo_handover.yml": "planner",
     "ppo_grip.yml": "simulator",
