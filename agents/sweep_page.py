@@ -65,9 +65,25 @@ def swept_rows(rows: list[dict[str, Any]], sweep: Sweep) -> list[dict[str, Any]]
     return [r for r in rows if all(r[k] == v for k, v in lowest.items())]
 
 
-def sweep_table(rows: list[dict[str, Any]], sweep: Sweep) -> str:
-    """One markdown row per suite and policy: its success rate (Wilson 95% interval) at each
-    level of the sweep."""
+#: What a sweep's table and plot can show at each level: the row keys of the value and its
+#: 95% interval, and how the plot's axis names it.
+MEASURES = {
+    "success": ("success_rate", "success_ci_low", "success_ci_high", "success rate"),
+    "grip": ("grip_W_mean", "grip_W_ci_low", "grip_W_ci_high", "y*/W over the successes"),
+}
+
+
+def _cell(r: dict[str, Any] | None, measure: str) -> str:
+    value, low, high, _ = MEASURES[measure]
+    if r is None or not math.isfinite(r.get(value, math.nan)):
+        return "n/a"
+    return f"{r[value]:.2f} ({r[low]:.2f}-{r[high]:.2f})"
+
+
+def sweep_table(rows: list[dict[str, Any]], sweep: Sweep, measure: str = "success") -> str:
+    """One markdown row per suite and policy: its success rate (Wilson 95% interval), or
+    with ``measure="grip"`` its mean y*/W over the successes (bootstrap 95% interval), at
+    each level of the sweep."""
     rows = swept_rows(rows, sweep)
     levels = levels_of(rows, sweep)
     head = "| suite | policy | test time | n | "
@@ -78,11 +94,7 @@ def sweep_table(rows: list[dict[str, Any]], sweep: Sweep) -> str:
         cells.setdefault((r["suite"], r["policy"]), {})[r[sweep.key]] = r
     for (suite, policy), by_level in cells.items():
         first = next(iter(by_level.values()))
-        rates = [
-            f"{r['success_rate']:.2f} ({r['success_ci_low']:.2f}-{r['success_ci_high']:.2f})"
-            if (r := by_level.get(m)) else "n/a"
-            for m in levels
-        ]  # fmt: skip
+        rates = [_cell(by_level.get(m), measure) for m in levels]
         lines.append(
             f"| {suite} | {policy} | {first['test_time']} | {first['episodes']} | "
             + " | ".join(rates)
@@ -92,8 +104,9 @@ def sweep_table(rows: list[dict[str, Any]], sweep: Sweep) -> str:
 
 
 def sweep_plot(path: Path, rows: list[dict[str, Any]], sweep: Sweep) -> None:
-    """Success rate against the sweep's level, one panel per suite, one line per policy, with
-    the 95% intervals as bands."""
+    """Success rate (top row) and mean y*/W over the successes (bottom row) against the
+    sweep's level, one column per suite, one line per policy, with the 95% intervals as
+    bands."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -102,25 +115,31 @@ def sweep_plot(path: Path, rows: list[dict[str, Any]], sweep: Sweep) -> None:
     rows = swept_rows(rows, sweep)
     suites = list(dict.fromkeys(r["suite"] for r in rows))
     policies = list(dict.fromkeys(r["policy"] for r in rows))
-    fig, axes = plt.subplots(1, len(suites), figsize=(4.2 * len(suites), 3.6), squeeze=False)
-    for ax, suite in zip(axes[0], suites, strict=True):
-        for policy in policies:
-            mine = sorted(
-                (r for r in rows if r["suite"] == suite and r["policy"] == policy),
-                key=lambda r: r[sweep.key],
-            )
-            if not mine:
-                continue
-            x = [r[sweep.key] for r in mine]
-            line = ax.plot(x, [r["success_rate"] for r in mine], marker="o", label=policy)[0]
-            ax.fill_between(
-                x, [r["success_ci_low"] for r in mine], [r["success_ci_high"] for r in mine],
-                color=line.get_color(), alpha=0.12,
-            )  # fmt: skip
-        ax.set_title(suite)
-        ax.set_xlabel(sweep.axis)
-        ax.set_ylim(-0.02, 1.02)
-    axes[0][0].set_ylabel("success rate")
+    fig, axes = plt.subplots(2, len(suites), figsize=(4.2 * len(suites), 6.6), squeeze=False)
+    colors = {p: f"C{i % 10}" for i, p in enumerate(policies)}
+    for row, measure in zip(axes, MEASURES, strict=True):
+        value, low, high, axis = MEASURES[measure]
+        for ax, suite in zip(row, suites, strict=True):
+            for policy in policies:
+                mine = sorted(
+                    (r for r in rows if r["suite"] == suite and r["policy"] == policy
+                     and math.isfinite(r.get(value, math.nan))),
+                    key=lambda r: r[sweep.key],
+                )  # fmt: skip
+                if not mine:
+                    continue
+                x = [r[sweep.key] for r in mine]
+                ax.plot(x, [r[value] for r in mine], marker="o", label=policy,
+                        color=colors[policy])  # fmt: skip
+                ax.fill_between(
+                    x, [r[low] for r in mine], [r[high] for r in mine],
+                    color=colors[policy], alpha=0.12,
+                )  # fmt: skip
+            ax.set_title(suite)
+            ax.set_xlabel(sweep.axis)
+            if measure == "success":
+                ax.set_ylim(-0.02, 1.02)
+        row[0].set_ylabel(axis)
     handles, labels = axes[0][0].get_legend_handles_labels()
     ncol = min(len(policies), 4)
     fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=8, frameon=False)
@@ -145,6 +164,11 @@ def sweep_page(
         "",
         sweep_table(rows, sweep).rstrip("\n"),
         "",
-        f"![success against {sweep.subject}]({image})",
+        "The grip of the successes, y\\*/W (mean, bootstrap 95% interval; `n/a` without a "
+        "success):",
+        "",
+        sweep_table(rows, sweep, "grip").rstrip("\n"),
+        "",
+        f"![success and grip against {sweep.subject}]({image})",
     ]
     return "\n".join(lines) + "\n"

@@ -270,7 +270,13 @@ def test_rows_at_each_friction_and_the_friction_page(tmp_path):
     assert "| fig13 | scripted | planner | 1 | 1.00 (0.21-1.00) | 0.00 (0.00-0.79) |" in table
     page = sp.sweep_page(rows, sp.FRICTION, "images/f.png", "python -m agents.evaluate", "d", "c")
     assert page.startswith("# Success against friction\n") and table in page
-    assert "![success against friction](images/f.png)" in page
+    assert "![success and grip against friction](images/f.png)" in page
+    grip = sp.sweep_table(rows, sp.FRICTION, "grip")
+    assert grip in page and grip.splitlines()[0] == table.splitlines()[0]
+    scripted = next(r for r in rows if r["policy"] == "scripted" and r["friction"] == 0.0)
+    low, high = scripted["grip_W_ci_low"], scripted["grip_W_ci_high"]
+    mean = f"{scripted['grip_W_mean']:.2f} ({low:.2f}-{high:.2f})"
+    assert f"| fig13 | scripted | planner | 1 | {mean} | n/a |" in grip  # no success at 0.3
     pytest.importorskip("matplotlib", reason="the viz extra draws the plot")
     sp.sweep_plot(tmp_path / "f.png", rows, sp.FRICTION)
     assert (tmp_path / "f.png").stat().st_size > 0
@@ -301,7 +307,7 @@ def test_rows_at_each_uncertainty_and_the_uncertainty_page(tmp_path):
         rows, sp.UNCERTAINTY, "images/u.png", "python -m agents.evaluate", "d", "c"
     )
     assert page.startswith("# Success against shape uncertainty\n") and table in page
-    assert "![success against shape uncertainty](images/u.png)" in page
+    assert "![success and grip against shape uncertainty](images/u.png)" in page
 
 
 def test_an_episode_at_an_uncertainty_plays_the_perturbed_env():
