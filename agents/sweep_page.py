@@ -115,7 +115,10 @@ def sweep_plot(path: Path, rows: list[dict[str, Any]], sweep: Sweep) -> None:
     rows = swept_rows(rows, sweep)
     suites = list(dict.fromkeys(r["suite"] for r in rows))
     policies = list(dict.fromkeys(r["policy"] for r in rows))
-    fig, axes = plt.subplots(2, len(suites), figsize=(4.2 * len(suites), 6.6), squeeze=False)
+    height = 6.6
+    fig, axes = plt.subplots(2, len(suites), figsize=(4.2 * len(suites), height), squeeze=False)
+    levels = levels_of(rows, sweep)
+    pad = 0.05 * (max(levels) - min(levels) or 1.0)
     colors = {p: f"C{i % 10}" for i, p in enumerate(policies)}
     for row, measure in zip(axes, MEASURES, strict=True):
         value, low, high, axis = MEASURES[measure]
@@ -137,13 +140,15 @@ def sweep_plot(path: Path, rows: list[dict[str, Any]], sweep: Sweep) -> None:
                 )  # fmt: skip
             ax.set_title(suite)
             ax.set_xlabel(sweep.axis)
+            ax.set_xlim(min(levels) - pad, max(levels) + pad)  # every panel on the same levels
             if measure == "success":
                 ax.set_ylim(-0.02, 1.02)
         row[0].set_ylabel(axis)
     handles, labels = axes[0][0].get_legend_handles_labels()
     ncol = min(len(policies), 4)
     fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0.07 * math.ceil(len(policies) / ncol) + 0.03, 1, 1))
+    legend = (0.25 * math.ceil(len(policies) / ncol) + 0.15) / height  # its share of the figure
+    fig.tight_layout(rect=(0, legend, 1, 1))
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
