@@ -51,6 +51,21 @@ def gap_hessians(P: np.ndarray, N: np.ndarray, kinds: np.ndarray, com, size: flo
 
 
 @njit(cache=CACHE)
+def scaled_rows(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray):
+    """The contacts ``keys``' points ``P``, normals ``N`` and rows ``V`` (moments over the
+    object's size), the rows ``Vs`` with those dependent to tolerance made exactly dependent,
+    their dependence ``members`` and ``eta = tol / size``: what both second-order tests read."""
+    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
+    V = constraint_matrix(P, N, com)
+    for i in range(V.shape[0]):
+        V[i, 2] /= model.size
+    eta = model.tol / model.size
+    directions, members = dependences(V, eta)
+    Vs = project(V, directions, members)
+    return P, N, V, Vs, members, eta
+
+
+@njit(cache=CACHE)
 def unstable(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> bool:
     """Whether the object, in equilibrium on the contacts ``keys``, sits at no minimum of
     its potential energy along the poses that keep them closed: some unit displacement
@@ -62,13 +77,7 @@ def unstable(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray) -> boo
     -lam . kappa(u)``: it falls both ways, by more than the tolerance resolves over the
     object's size (a potential maximum or saddle: an object next to it moves away). A
     curvature the tolerance does not resolve counts as flat, as in :func:`wedged`."""
-    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
-    V = constraint_matrix(P, N, com)
-    for i in range(V.shape[0]):
-        V[i, 2] /= model.size
-    eta = model.tol / model.size
-    directions, members = dependences(V, eta)
-    Vs = project(V, directions, members)
+    P, N, V, Vs, _, eta = scaled_rows(model, world, com, keys)
     lam, _ = dense.nnls(Vs.T.copy(), np.array([0.0, 1.0, 0.0]))
     total = lam.sum()
     if total <= 0.0:
@@ -149,13 +158,7 @@ def wedged(model, world: np.ndarray, com: np.ndarray, keys: np.ndarray, eps: flo
     descents form an arc of ``d = (cos t, sin t)``. There each ``mu``'s term is ``alpha +
     beta cos 2t + gamma sin 2t``, so the worst ``d`` (largest least term) is an end of the
     arc, a stationary point of one term or a point where two are equal."""
-    P, N, _, _, _ = contact_rows(world, model.n_object, model.n_vertices, keys)
-    V = constraint_matrix(P, N, com)
-    for i in range(V.shape[0]):
-        V[i, 2] /= model.size
-    eta = model.tol / model.size
-    directions, members = dependences(V, eta)
-    Vs = project(V, directions, members)
+    P, N, V, Vs, members, eta = scaled_rows(model, world, com, keys)
     stresses = self_stresses(Vs, members, eta)
     if stresses.shape[0] == 0:
         return False
