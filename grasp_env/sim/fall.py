@@ -29,7 +29,7 @@ from grasp_env.sim.increment import (
     newton,
     newton_held,
 )
-from grasp_env.sim.placement import EDGE, SUPPORT, contact_rows, place
+from grasp_env.sim.placement import SUPPORT, contact_rows, place
 from grasp_env.sim.pose import constraint_matrix
 from grasp_env.solvers import dense, least_norm
 
@@ -171,17 +171,18 @@ def at_edge_end(model, world: np.ndarray, key: np.ndarray) -> bool:
 @njit(cache=CACHE)
 def fall_options(model, world: np.ndarray, keys: np.ndarray) -> list:
     """Contact sets a fall step may keep: at a vertex-vertex touch any one candidate's
-    half-plane suffices locally, or all candidates at once (always admissible). An edge
-    contact at the very end of its hand edge may slide off it: then its twin (the hand
-    vertex there, on the object's edge), which detection folds into it, carries the slide
-    on."""
+    half-plane suffices locally, or all candidates at once (always admissible). A contact
+    at the very end of its edge (an object vertex at a hand edge's end, a hand vertex at an
+    object edge's end) may slide off it: then its twins, which detection folds into it,
+    carry the slide on (the vertex at that end on the other body's edge, or the same vertex
+    on the next edge where the two edges are collinear)."""
     options = contact_sets.choices(model, world, keys)
     if len(options) > 1:
         options.append(keys)
     ends = contact_sets.empty()
     for i in range(keys.shape[0]):
         k = keys[i]
-        if k[0] != SUPPORT and k[1] == EDGE and at_edge_end(model, world, k):
+        if k[0] != SUPPORT and at_edge_end(model, world, k):
             ends = contact_sets.with_key(ends, k)
     if ends.shape[0] > 0:
         twins = touching(model, world, ends)

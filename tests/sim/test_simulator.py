@@ -870,6 +870,64 @@ def test_a_fall_does_not_come_back_to_a_potential_maximum() -> None:
     assert_invariants(end, tol_of(sim), "near-circle after the fall")
 
 
+#: A polygon with three collinear vertices (5, 6, 7: edges 5 and 6 on one line), as the soak
+#: drew it (seed 6, shape 310), with its palm, fingers and density.
+COLLINEAR = {
+    "name": "stress",
+    "palm": {"width": 1.0, "thickness": 0.15, "pose": [0.004191952551147238, 0.71, 0.0]},
+    "fingers": [
+        {"length": 0.6, "thickness": 0.05, "angle": -HALF_PI},
+        {"length": 0.7, "thickness": 0.05, "angle": -HALF_PI},
+    ],
+    "object": {
+        "vertices": [
+            [-0.0980207840387885, 0.0],
+            [0.19210385052428575, 0.0],
+            [0.2780149765879034, 0.08244490753109468],
+            [0.2304631471533708, 0.20121358520292748],
+            [-0.03080614563616009, 0.2959896707450321],
+            [-0.2055193236577748, 0.264682810023511],
+            [-0.23757519940087052, 0.1961042159001044],
+            [-0.26963107148560894, 0.12752562006666213],
+            [-0.19937604549250448, 0.04875841732648642],
+        ],
+        "density": 16.88320285912315,
+    },
+}
+
+
+def test_a_fall_slides_a_fingertip_past_a_vertex_between_collinear_edges() -> None:
+    """Regression (soak seed 6, shape 310, step 421): held by finger 2's face and finger 1's
+    tip, the object is released as the hand moves and falls with the tip sliding down object
+    edge 5 toward vertex 6, where edge 6 goes on along the same line. At the vertex the
+    tip's contact is at the end of its edge, and every fall step along the descent was cut
+    short there at zero length: detection folds the tip on edge 6 (same point, same normal)
+    into the one on edge 5, so the fall never tried the contact that carries the slide on.
+    The move ended in "jam ... with the object neither held nor falling". A contact at the
+    end of its edge of either kind (an object vertex at a hand edge's end, a hand vertex at
+    an object edge's end) now offers the fall its twins, and the object falls on."""
+    sim = Simulator(grasp_env.load_scene(COLLINEAR))
+    pose = np.array([0.07160738256348494, 0.3671448882345445, 1.1979681940201987])
+    hand = np.array(
+        [0.058522808150337745, 0.6670053731072764, -0.15481543333132916, -0.8653382847040869,
+         -2.2371938010558616]
+    )  # fmt: skip
+    start = sim.settle(pose, hand)
+    np.testing.assert_array_equal(start.object_pose, pose)
+    assert contact_set(start) == [("finger1", "tip"), ("finger2", "edge"), ("finger2", "edge")]
+    assert_invariants(start, tol_of(sim), "held before the move")
+    end = sim.move_hand(
+        start,
+        palm=(0.05572830368666511, 0.6777543901074747, -0.12966103643973523),
+        fingers=(-0.8587852867275454, -2.2631539663180837),
+    )
+    assert "fall_start" in [e.kind for e in end.events]
+    assert not end.jammed
+    np.testing.assert_allclose(end.hand[3:], (-0.8587852867275454, -2.2631539663180837))
+    assert sim.solves <= 1000, f"{sim.solves} pose solves for one move"
+    assert_invariants(end, tol_of(sim), "after the fall past the collinear vertex")
+
+
 def test_fall_with_no_admissible_step_stops_searching() -> None:
     """Regression (found by the planner's exploratory search): when no point along a fall
     step solves the contact equations, the step's bisection ran all 200 halvings (its
