@@ -3,8 +3,10 @@ energy (gravity projected onto the admissible cone, in the mass metric) until co
 hold it.
 
 Each fall step keeps the descent's tight contacts closed (Newton on their equations) and is
-shortened to the first new contact or edge end; near a stable rest on one or two contacts
-(a cradle, where descent converges only linearly) the rest pose is solved for directly.
+shortened to the first new contact or edge end; where three or more tight contacts are
+dependent to tolerance and no step keeping them all closed goes down, it lets one go (their
+curvature opens it). Near a stable rest on one or two contacts (a cradle, where descent
+converges only linearly) the rest pose is solved for directly.
 Events are appended to the move's log (:mod:`grasp_env.sim.events`).
 """
 
@@ -193,6 +195,33 @@ def fall_options(model, world: np.ndarray, keys: np.ndarray) -> list:
 
 
 @njit(cache=CACHE)
+def lowers(model, q: np.ndarray, q_new: np.ndarray, at_event: bool) -> bool:
+    """Whether a fall step from ``q`` to ``q_new`` goes down: it lowers the object by more
+    than rounding, or reaches a new contact along a nearly flat way down."""
+    if q_new[1] < q[1] - 1e-12 * model.size:
+        return True
+    return at_event and q_new[1] <= q[1] and np.any(q_new != q)
+
+
+@njit(cache=CACHE)
+def backtrack(model, q: np.ndarray, h: np.ndarray, E: np.ndarray, d: np.ndarray, solves):
+    """The fall step along ``d`` keeping ``E`` closed, halved until it goes down
+    (:func:`lowers`; near a stable rest, a cradle, a full step overshoots): ``(q_new,
+    at_event)``."""
+    q_new, at_event = q, False
+    for _ in range(HALVINGS):
+        q_new, at_event, stepped = fall_step(model, q, h, E, d, solves)
+        if lowers(model, q, q_new, at_event):
+            break
+        if at_event and not stepped:
+            # No admissible point along d at all: the bisection already tried every step a
+            # halved d would (d/2, d/4, ... down to rounding).
+            break
+        d = 0.5 * d
+    return q_new, at_event
+
+
+@njit(cache=CACHE)
 def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
     """Quasi-static fall from ``q`` at hand ``h`` (path parameter ``s``): ``(q, moved)``,
     the rest pose and whether the object moved at all. Logs the fall's start and end."""
@@ -232,19 +261,17 @@ def fall(model, q: np.ndarray, h: np.ndarray, s: float, events: list, solves):
             norm_a = math.sqrt(dense.dot(a, a))
             if norm_a < 1e-13:
                 continue  # gravity is balanced to first order by this choice
-            # backtracking: near a stable rest (a cradle) a full step overshoots
             d = a * model.scale / norm_a * model.fall_step
-            for _ in range(HALVINGS):
-                q_new, at_event, stepped = fall_step(model, q, h, E, d, solves)
-                if q_new[1] < q[1] - 1e-12 * model.size:
-                    break
-                if at_event and q_new[1] <= q[1] and np.any(q_new != q):
-                    break  # a nearly flat way down that reaches a new contact
-                if at_event and not stepped:
-                    # No admissible point along d at all: the bisection already tried
-                    # every step a halved d would (d/2, d/4, ... down to rounding).
-                    break
-                d = 0.5 * d
+            q_new, at_event = backtrack(model, q, h, E, d, solves)
+            if E.shape[0] > 2 and not lowers(model, q, q_new, at_event):
+                # Three or more contacts dependent to tolerance leave the descent free to
+                # first order, but Newton, keeping them all closed, can only return to q:
+                # the curvature opens one of them along the descent. Let each go in turn;
+                # the step's geometric check keeps the one let go from cutting in.
+                for i in range(E.shape[0]):
+                    q_i, event_i = backtrack(model, q, h, contact_sets.without(E, E[i]), d, solves)
+                    if q_i[1] < q_new[1]:
+                        q_new, at_event = q_i, event_i
             if not have_best or q_new[1] < best[1]:
                 best, best_event, have_best = q_new, at_event, True
         # A step that ends on an event (a new contact, an edge's end) changes the contacts
