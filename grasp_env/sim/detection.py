@@ -22,7 +22,11 @@ A pair is a contact when all of these hold:
   candidate edges that would cut through the other body. Nearly flush edges (an edge along
   an edge) pass: a neighbour may dip behind the line by ``max(4 tol, 1e-7 |d|)``, an angle
   of 1e-7 rad and at least a few tolerances (an edge that has just come to lie along
-  another, located to within ``tol`` at both of its ends);
+  another, located to within ``tol`` at both of its ends). A vertex inside the edge it
+  touches (more than ``2 tol`` from either end) passes too when its neighbours reach at
+  most ``4 tol`` into the other body: an edge along an edge at an angle just over that
+  slack, the two crossing within their overlap, has both end contacts within the
+  tolerance;
 * it is not in ``exclude``;
 * no contact of the same body kept before it has the same point (to within ``2 tol`` in
   each coordinate) and normal (cosine above ``1 - 1e-9``): a vertex-vertex touch along
@@ -64,6 +68,62 @@ def _locally_valid(
     for nbr in (first + (v - 1) % count, first + (v + 1) % count):
         dx, dy = world[nbr, 0] - px, world[nbr, 1] - py
         if nx * dx + ny * dy < -max(4.0 * tol, FLUSH_ANGLE * math.hypot(dx, dy)):
+            return False
+    return True
+
+
+@njit(cache=CACHE)
+def _least(c: np.ndarray, e: np.ndarray, u: float) -> float:
+    """The least of the linear functions ``c + u e`` at ``u``."""
+    out = np.inf
+    for k in range(c.shape[0]):
+        out = min(out, c[k] + u * e[k])
+    return out
+
+
+@njit(cache=CACHE)
+def _cut_depth(world: np.ndarray, n_vertices: int, p: int, q: int, first: int, count: int) -> float:
+    """How deep the segment from point row ``p`` to ``q`` reaches into the convex polygon in
+    rows ``first .. first + count - 1`` (outward edge normals ``n_vertices`` rows further
+    on): the largest, along the segment, of its least distance inside the edges' lines
+    (<= 0 outside). That least distance is a minimum of linear functions of the position
+    along the segment, so its largest value lies at an end or where two of them cross."""
+    px, py = world[p, 0], world[p, 1]
+    dx, dy = world[q, 0] - px, world[q, 1] - py
+    c = np.empty(count)  # inward distance of the segment at its start, per edge line
+    e = np.empty(count)  # and its rate along the segment
+    for i in range(count):
+        a, nrm = first + i, n_vertices + first + i
+        c[i] = -((px - world[a, 0]) * world[nrm, 0] + (py - world[a, 1]) * world[nrm, 1])
+        e[i] = -(dx * world[nrm, 0] + dy * world[nrm, 1])
+    best = max(_least(c, e, 0.0), _least(c, e, 1.0))  # the segment's ends
+    for i in range(count):
+        for j in range(i + 1, count):
+            if e[i] != e[j]:
+                u = (c[j] - c[i]) / (e[i] - e[j])
+                if 0.0 < u < 1.0:
+                    best = max(best, _least(c, e, u))
+    return best
+
+
+@njit(cache=CACHE)
+def _along_within_tolerance(
+    world: np.ndarray, n_vertices: int, first: int, count: int, v: int, a: int, b: int,
+    other: int, other_count: int, tol: float,
+) -> bool:  # fmt: skip
+    """Whether vertex ``first + v`` of its polygon, inside the edge from point row ``a`` to
+    ``b`` of the other polygon (rows ``other .. other + other_count - 1``) by more than two
+    tolerances from either end, has neighbours that reach at most four tolerances into that
+    polygon: an edge lying along an edge at an angle just over the flush slack, where the
+    two cross within their overlap, both end contacts within the tolerance. At a
+    vertex-vertex touch the angle rule (:func:`_locally_valid`) alone decides."""
+    ex, ey = world[b, 0] - world[a, 0], world[b, 1] - world[a, 1]
+    L2 = ex * ex + ey * ey
+    t = ((world[first + v, 0] - world[a, 0]) * ex + (world[first + v, 1] - world[a, 1]) * ey) / L2
+    if min(t, 1.0 - t) * math.sqrt(L2) <= 2.0 * tol:
+        return False
+    for nbr in (first + (v - 1) % count, first + (v + 1) % count):
+        if _cut_depth(world, n_vertices, first + v, nbr, other, other_count) > 4.0 * tol:
             return False
     return True
 
@@ -148,7 +208,9 @@ def detect(
                 if not (abs(gap) <= tol and on) or _excluded(exclude, body, EDGE, k, j):
                     continue
                 nx, ny = world[nrm, 0], world[nrm, 1]
-                if _locally_valid(world, 0, n_object, k, nx, ny, tol):
+                if _locally_valid(world, 0, n_object, k, nx, ny, tol) or _along_within_tolerance(
+                    world, n_vertices, 0, n_object, k, a, first + (j + 1) % 4, first, 4, tol
+                ):
                     key = (body, EDGE, k, j)
                     count = _keep(out, seen, count, key, (world[k, 0], world[k, 1]), (nx, ny), tol)
     for body in bodies:  # vertex j of the body on object edge k
@@ -161,7 +223,9 @@ def detect(
                 if not (abs(gap) <= tol and on) or _excluded(exclude, body, TIP, k, j):
                     continue
                 nx, ny = world[n_vertices + k, 0], world[n_vertices + k, 1]
-                if _locally_valid(world, first, 4, j, nx, ny, tol):
+                if _locally_valid(world, first, 4, j, nx, ny, tol) or _along_within_tolerance(
+                    world, n_vertices, first, 4, j, k, (k + 1) % n_object, 0, n_object, tol
+                ):
                     p = (world[first + j, 0], world[first + j, 1])
                     count = _keep(out, seen, count, (body, TIP, k, j), p, (-nx, -ny), tol)
     return out[:count].copy()

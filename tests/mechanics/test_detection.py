@@ -30,7 +30,8 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
     """Contacts by the documented rules, from the placement's world polygons and normals:
     ``|gap| <= tol``, the projection on the edge or the vertex within ``tol`` of its end,
     both of the vertex's neighbours on its side of the edge's line up to
-    ``max(4 tol, 1e-7 |d|)``, not
+    ``max(4 tol, 1e-7 |d|)`` (or, for a vertex more than ``2 tol`` inside a hand or object
+    edge, both reaching at most ``4 tol`` into the other body), not
     excluded, and no earlier kept contact of the same body with the same point (``2 tol``)
     and normal;
     edge contacts (support, palm, fingers; by object vertex, then hand edge) before tip
@@ -50,17 +51,34 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
         over = max(-t, t - 1, 0.0) * length  # past an end: within tol of it
         return abs(gap) <= tol and math.hypot(over, gap) <= tol if over else abs(gap) <= tol
 
-    def valid(poly, v, nrm):
+    def within_flush_slack(poly, v, nrm):
         p = poly[v]
         for nbr in (poly[v - 1], poly[(v + 1) % len(poly)]):
             dx, dy = nbr[0] - p[0], nbr[1] - p[1]
             dip, slack = nrm[0] * dx + nrm[1] * dy, max(4 * tol, 1e-7 * math.hypot(dx, dy))
             if dip < -slack:
-                counts["invalid"] = counts.get("invalid", 0) + 1
                 return False
             if dip < -slack / 2:
                 counts["nearly flush"] = counts.get("nearly flush", 0) + 1
         return True
+
+    def along_within_tol(poly, v, edge, other, other_n):
+        a, b = np.array(edge[0]), np.array(edge[1])
+        p = np.array(poly[v])
+        t = float((p - a) @ (b - a)) / float((b - a) @ (b - a))
+        if min(t, 1 - t) * float(np.linalg.norm(b - a)) <= 2 * tol:
+            return False
+        nbrs = (poly[v - 1], poly[(v + 1) % len(poly)])
+        return all(cut_depth(p, np.array(n), other, other_n) <= 4 * tol for n in nbrs)
+
+    def valid(poly, v, nrm, edge=None, other=None, other_n=None):
+        if within_flush_slack(poly, v, nrm):
+            return True
+        if edge is not None and along_within_tol(poly, v, edge, other, other_n):
+            counts["along within tol"] = counts.get("along within tol", 0) + 1
+            return True
+        counts["invalid"] = counts.get("invalid", 0) + 1
+        return False
 
     candidates = []  # (key, point, normal into the object)
     for k, p in enumerate(obj):
@@ -70,13 +88,15 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
         poly, normals = hands[body - 1], hands_n[body - 1]
         for k, p in enumerate(obj):
             for j in range(4):
-                if on_edge(p, poly, normals, j) and valid(obj, k, normals[j]):
+                edge = (poly[j], poly[(j + 1) % 4])
+                if on_edge(p, poly, normals, j) and valid(obj, k, normals[j], edge, poly, normals):
                     candidates.append(((body, EDGE, k, j), p, tuple(normals[j])))
     for body in (1, 2, 3):
         poly = hands[body - 1]
         for j, p in enumerate(poly):
             for k in range(len(obj)):
-                if on_edge(p, obj, obj_n, k) and valid(poly, j, obj_n[k]):
+                edge = (obj[k], obj[(k + 1) % len(obj)])
+                if on_edge(p, obj, obj_n, k) and valid(poly, j, obj_n[k], edge, obj, obj_n):
                     candidates.append(((body, TIP, k, j), p, (-obj_n[k][0], -obj_n[k][1])))
     kept, out = [], []
     for key, p, n in candidates:
@@ -94,6 +114,26 @@ def reference(pl: ct.Placement, tol: float, exclude=frozenset(), counts=None) ->
         kept.append((key[0], p, n))
         out.append(key)
     return out
+
+
+def cut_depth(p: np.ndarray, q: np.ndarray, poly, normals) -> float:
+    """How deep the segment from ``p`` to ``q`` reaches into the convex polygon (vertices
+    ``poly``, outward normals ``normals``): the largest, along the segment, of its least
+    distance inside the edges' lines. That least distance is concave along the segment, so a
+    ternary search finds its largest value (to rounding, after 200 rounds)."""
+    A, N = np.asarray(poly, float), np.asarray(normals, float)
+
+    def depth(u: float) -> float:
+        return float(np.min(-np.sum((p + u * (q - p) - A) * N, axis=1)))
+
+    lo, hi = 0.0, 1.0
+    for _ in range(200):
+        m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
+        if depth(m1) < depth(m2):
+            lo = m1
+        else:
+            hi = m2
+    return max(depth(0.0), depth(1.0), depth(0.5 * (lo + hi)))
 
 
 def rot(theta: float) -> np.ndarray:
@@ -154,8 +194,12 @@ def test_detect_matches_brute_force(name: str) -> None:
     scene = grasp_env.load_scene(name)
     rng = np.random.default_rng(sum(map(ord, name)))
     seen = dict.fromkeys(
-        ("edge", "tip", "two on a body", "twin", "invalid", "duplicate", "nearly flush"), 0
-    )
+        (
+            "edge", "tip", "two on a body", "twin", "invalid", "duplicate", "nearly flush",
+            "along within tol",
+        ),
+        0,
+    )  # fmt: skip
     for _ in range(400):
         tol = float(rng.choice(TOLS)) * scene.palm.width
         q, h = touching(scene, rng, tol)
@@ -209,6 +253,32 @@ def test_flush_edge_ending_at_a_fingertip() -> None:
     released = ct.detect(pl, tol, exclude={(3, EDGE, 1, 3)})
     assert released == reference(pl, tol, {(3, EDGE, 1, 3)})
     assert released == [(3, EDGE, 2, 3), (3, TIP, 1, 0)]
+
+
+def test_edge_along_a_face_just_over_the_flush_angle() -> None:
+    """The square's right side along finger 2's inner side over the last 5 mm above the
+    fingertip, turned by three times the flush angle (3e-7 rad) about the middle of that
+    stretch: the two lines cross there and part by 7.5e-10 at its ends, within the
+    tolerance. Both ends are contacts, the square's top corner on the finger's side and the
+    fingertip on the square's side, though each one's neighbouring edge (the square's side,
+    0.3 long; the finger's side, 0.7) dips behind the other's line by more than the flush
+    slack: past the stretch it runs outside the other body. The lines turned about the
+    corner instead part by 1.5e-9 at the fingertip, which is then no contact."""
+    scene = grasp_env.load_scene("square")
+    h = scene.initial_hand
+    tip = ct.Placement(scene, scene.object.start_pose, h).hand_W[2][0]
+    np.testing.assert_allclose(tip, (0.5, 0.01), atol=1e-12)
+    corner = scene.object.vertices_B[2]  # top right
+    upright = pose_putting(corner, tip + np.array([0.0, 0.005]), 0.0)
+    tol = 1e-9 * scene.palm.width
+    for pivot, expected in (
+        (tip + np.array([0.0, 0.0025]), [(3, EDGE, 2, 3), (3, TIP, 1, 0)]),
+        (tip + np.array([0.0, 0.005]), [(3, EDGE, 2, 3)]),
+    ):
+        theta = 3e-7
+        q = np.array([*(rot(theta) @ (upright[:2] - pivot) + pivot), theta])
+        pl = ct.Placement(scene, q, h)
+        assert ct.detect(pl, tol) == reference(pl, tol) == expected
 
 
 def test_keys_are_named_tuples_of_python_ints() -> None:
