@@ -813,29 +813,50 @@ def test_events_cycling_at_one_point_end_the_move_early() -> None:
     assert_invariants(end, tol_of(sim), "jammed at the boundary of equilibrium")
 
 
-#: A near-circle (soak seed 6, shape 365), its palm, fingers and density as the soak drew them.
-NEAR_CIRCLE = {
-    "name": "stress",
-    "palm": {"width": 1.0, "thickness": 0.15, "pose": [-0.0015772888424103182, 0.71, 0.0]},
-    "fingers": [
-        {"length": 0.6, "thickness": 0.05, "angle": -HALF_PI},
-        {"length": 0.7, "thickness": 0.05, "angle": -HALF_PI},
-    ],
-    "object": {
-        "vertices": [
-            [-0.11576337377032639, 0.0],
-            [0.11617343576038054, 0.0],
-            [0.2713351263086484, 0.1289507295288007],
-            [0.3068071123689645, 0.34655963305504983],
-            [0.19084762596457164, 0.5224265676235489],
-            [0.009861035236314881, 0.5845544149100176],
-            [-0.2072278433058991, 0.5089948566345823],
-            [-0.30996169005378515, 0.3275620194895235],
-            [-0.2716341305863059, 0.13019381848052708],
+def soak_scene(palm_x: float, vertices: list, density: float) -> dict:
+    """A scene as the soak draws it: fig13's palm at ``palm_x`` with the fingers hanging
+    straight down, and the object ``vertices`` at ``density``."""
+    return {
+        "name": "stress",
+        "palm": {"width": 1.0, "thickness": 0.15, "pose": [palm_x, 0.71, 0.0]},
+        "fingers": [
+            {"length": 0.6, "thickness": 0.05, "angle": -HALF_PI},
+            {"length": 0.7, "thickness": 0.05, "angle": -HALF_PI},
         ],
-        "density": 0.0024925981749921626,
-    },
-}
+        "object": {"vertices": vertices, "density": density},
+    }
+
+
+def settled_where_soaked(
+    scene: dict, pose: list, hand: list, contacts: list
+) -> tuple[Simulator, State]:
+    """The simulator of a soak's ``scene`` and its state before a failing move: settled at
+    ``pose`` and ``hand`` without moving, touching by ``contacts``, every invariant
+    holding."""
+    sim = Simulator(grasp_env.load_scene(scene))
+    start = sim.settle(np.array(pose), np.array(hand))
+    np.testing.assert_array_equal(start.object_pose, pose)
+    assert contact_set(start) == contacts
+    assert_invariants(start, tol_of(sim), "before the move")
+    return sim, start
+
+
+#: A near-circle (soak seed 6, shape 365), its palm, fingers and density as the soak drew them.
+NEAR_CIRCLE = soak_scene(
+    -0.0015772888424103182,
+    [
+        [-0.11576337377032639, 0.0],
+        [0.11617343576038054, 0.0],
+        [0.2713351263086484, 0.1289507295288007],
+        [0.3068071123689645, 0.34655963305504983],
+        [0.19084762596457164, 0.5224265676235489],
+        [0.009861035236314881, 0.5845544149100176],
+        [-0.2072278433058991, 0.5089948566345823],
+        [-0.30996169005378515, 0.3275620194895235],
+        [-0.2716341305863059, 0.13019381848052708],
+    ],
+    0.0024925981749921626,
+)
 
 
 def test_a_fall_does_not_come_back_to_a_potential_maximum() -> None:
@@ -850,16 +871,13 @@ def test_a_fall_does_not_come_back_to_a_potential_maximum() -> None:
     all of it repeated until 'no progress after 200 increments' (1288 solves). A cradle is a
     minimum: the object rolls down the fingers away from the palm, and the move goes on to a
     state the independent check accepts."""
-    sim = Simulator(grasp_env.load_scene(NEAR_CIRCLE))
-    pose = np.array([-0.07265695928901365, 0.3592271488259931, 0.4210263017412758])
-    hand = np.array(
+    sim, start = settled_where_soaked(
+        NEAR_CIRCLE,
+        [-0.07265695928901365, 0.3592271488259931, 0.4210263017412758],
         [-0.09506054110469425, 0.6544919861705529, 0.03333601585483807, -1.0588395703872222,
-         -2.0604993980686834]
+         -2.0604993980686834],
+        [("finger1", "edge"), ("finger2", "edge"), ("finger2", "edge")],
     )  # fmt: skip
-    start = sim.settle(pose, hand)
-    np.testing.assert_array_equal(start.object_pose, pose)
-    assert contact_set(start) == [("finger1", "edge"), ("finger2", "edge"), ("finger2", "edge")]
-    assert_invariants(start, tol_of(sim), "near-circle before the move")
     end = sim.move_hand(
         start,
         palm=(-0.0849326736444434, 0.6361244954021203, 0.012455567036631282),
@@ -872,28 +890,21 @@ def test_a_fall_does_not_come_back_to_a_potential_maximum() -> None:
 
 #: A polygon with three collinear vertices (5, 6, 7: edges 5 and 6 on one line), as the soak
 #: drew it (seed 6, shape 310), with its palm, fingers and density.
-COLLINEAR = {
-    "name": "stress",
-    "palm": {"width": 1.0, "thickness": 0.15, "pose": [0.004191952551147238, 0.71, 0.0]},
-    "fingers": [
-        {"length": 0.6, "thickness": 0.05, "angle": -HALF_PI},
-        {"length": 0.7, "thickness": 0.05, "angle": -HALF_PI},
+COLLINEAR = soak_scene(
+    0.004191952551147238,
+    [
+        [-0.0980207840387885, 0.0],
+        [0.19210385052428575, 0.0],
+        [0.2780149765879034, 0.08244490753109468],
+        [0.2304631471533708, 0.20121358520292748],
+        [-0.03080614563616009, 0.2959896707450321],
+        [-0.2055193236577748, 0.264682810023511],
+        [-0.23757519940087052, 0.1961042159001044],
+        [-0.26963107148560894, 0.12752562006666213],
+        [-0.19937604549250448, 0.04875841732648642],
     ],
-    "object": {
-        "vertices": [
-            [-0.0980207840387885, 0.0],
-            [0.19210385052428575, 0.0],
-            [0.2780149765879034, 0.08244490753109468],
-            [0.2304631471533708, 0.20121358520292748],
-            [-0.03080614563616009, 0.2959896707450321],
-            [-0.2055193236577748, 0.264682810023511],
-            [-0.23757519940087052, 0.1961042159001044],
-            [-0.26963107148560894, 0.12752562006666213],
-            [-0.19937604549250448, 0.04875841732648642],
-        ],
-        "density": 16.88320285912315,
-    },
-}
+    16.88320285912315,
+)
 
 
 def test_a_fall_slides_a_fingertip_past_a_vertex_between_collinear_edges() -> None:
@@ -906,16 +917,13 @@ def test_a_fall_slides_a_fingertip_past_a_vertex_between_collinear_edges() -> No
     The move ended in "jam ... with the object neither held nor falling". A contact at the
     end of its edge of either kind (an object vertex at a hand edge's end, a hand vertex at
     an object edge's end) now offers the fall its twins, and the object falls on."""
-    sim = Simulator(grasp_env.load_scene(COLLINEAR))
-    pose = np.array([0.07160738256348494, 0.3671448882345445, 1.1979681940201987])
-    hand = np.array(
+    sim, start = settled_where_soaked(
+        COLLINEAR,
+        [0.07160738256348494, 0.3671448882345445, 1.1979681940201987],
         [0.058522808150337745, 0.6670053731072764, -0.15481543333132916, -0.8653382847040869,
-         -2.2371938010558616]
+         -2.2371938010558616],
+        [("finger1", "tip"), ("finger2", "edge"), ("finger2", "edge")],
     )  # fmt: skip
-    start = sim.settle(pose, hand)
-    np.testing.assert_array_equal(start.object_pose, pose)
-    assert contact_set(start) == [("finger1", "tip"), ("finger2", "edge"), ("finger2", "edge")]
-    assert_invariants(start, tol_of(sim), "held before the move")
     end = sim.move_hand(
         start,
         palm=(0.05572830368666511, 0.6777543901074747, -0.12966103643973523),
