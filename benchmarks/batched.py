@@ -101,6 +101,7 @@ def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, f
     venv.reset(seed=0)
     parts = {"compiled step": 0.0, "resets": 0.0, "Python's steps": 0.0}
     real_batch, real_reset = vector.step_batch, type(venv.envs[0]).reset
+    real_advance = vector.Episode.advance
 
     def timed_batch(*args):
         start = time.perf_counter()
@@ -113,8 +114,15 @@ def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, f
         parts["resets"] += time.perf_counter() - start
         return out
 
+    def timed_advance(self, *args):
+        start = time.perf_counter()
+        out = real_advance(self, *args)
+        parts["Python's steps"] += time.perf_counter() - start
+        return out
+
     vector.step_batch = timed_batch
     type(venv.envs[0]).reset = timed_reset
+    vector.Episode.advance = timed_advance
     fallbacks = 0
     try:
         start = time.perf_counter()
@@ -125,6 +133,7 @@ def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, f
     finally:
         vector.step_batch = real_batch
         type(venv.envs[0]).reset = real_reset
+        vector.Episode.advance = real_advance
     parts["rest"] = total - sum(parts.values())
     return {k: v / steps for k, v in parts.items()} | {"steps Python took over": fallbacks}
 

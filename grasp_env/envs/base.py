@@ -66,6 +66,9 @@ class GraspEnvBase(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (action_size,), np.float32)
         self._renderer: Renderer | None = None
         self._episode: Episode | None = None
+        #: The first episode of each start the task keeps (by its key), copied at a reset
+        #: from it instead of analysed again.
+        self._episodes: dict[Any, Episode] = {}
 
     # ------------------------------------------------------------------ public accessors
     @property
@@ -107,15 +110,22 @@ class GraspEnvBase(gym.Env):
         return action_values(action, self.action_space.shape[0])
 
     def _new_episode(
-        self, sim: Simulator, state: State, nominal: Simulator | None = None
+        self, sim: Simulator, state: State, nominal: Simulator | None = None, key: Any = None
     ) -> Episode:
         """The episode of ``sim`` starting at ``state``, observed with the shape of
         ``nominal``'s object (default ``sim``'s): its constants (the action's steps and the
-        palm workspace among them) and analysis; changes nothing of the env."""
+        palm workspace among them) and analysis; changes nothing of the env but the cache of
+        first episodes. ``key``: the start's, where the task keeps it (every episode from it
+        starts the same, so the first is kept and copied)."""
+        if key is not None and key in self._episodes:
+            return self._episodes[key].fresh()
         consts = episode_constants(
             state.scene, state, self.max_finger_step, self.max_palm_step, sim.model.rho
         )
-        return Episode(sim, state, consts, self._settings, len(self._obs_low), nominal)
+        episode = Episode(sim, state, consts, self._settings, len(self._obs_low), nominal)
+        if key is not None:
+            self._episodes[key] = episode.fresh()
+        return episode
 
     def simulate_action(self, state: State, action: Any) -> State:
         """The state ``action`` leads to from ``state``, without changing the env.

@@ -125,6 +125,16 @@ class Episode:
             model, consts, settings, self.q, self.h, self.keys, self.rows, self.an, self.obs
         )
 
+    def fresh(self) -> Episode:
+        """A copy whose arrays are its own (the simulators, the state and the constants,
+        which nothing changes, shared): an episode to step from where this one stands."""
+        out = object.__new__(Episode)
+        for name in ("sim", "nominal", "state", "consts"):
+            setattr(out, name, getattr(self, name))
+        for name in ("q", "h", "keys", "rows", "an", "ep", "obs"):
+            setattr(out, name, getattr(self, name).copy())
+        return out
+
     def observation(self, settings: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
         """The observation of the current state."""
         return self.observe(self.q, self.h, self.obs, settings, low, high)

@@ -421,19 +421,25 @@ class FrictionlessGraspEnv(GraspEnvBase):
         """Start an episode (see Starting State). A refused reset (bad ``seed`` or ``options``,
         or a simulator error settling the hand they give) changes nothing: the episode in
         progress, if any, and the random generator stay as they were. So everything that can
-        fail runs first, drawing from a copy of the generator, and is then committed."""
+        fail runs first, and the generator goes back to where it was if it fails."""
         opts = reset_options(options, self._load)
         try:
             if isinstance(seed, bool | np.bool_):
                 raise gym.error.Error  # seeding would take it for 0 or 1
-            rng = _copy_generator(self.np_random) if seed is None else seeding.np_random(seed)[0]
+            rng = self.np_random if seed is None else seeding.np_random(seed)[0]
         except gym.error.Error:
             raise ValueError(f"seed must be None or an int >= 0, got {short(seed)}") from None
-        sim, state, error, nominal = self._start(rng, opts)
-        episode = self._new_episode(sim, state, nominal)
+        drawn_from = rng.bit_generator.state
+        try:
+            sim, state, error, nominal, key = self._start(rng, opts)
+            episode = self._new_episode(sim, state, nominal, key)
+        except BaseException:
+            rng.bit_generator.state = drawn_from  # the env's own generator draws nothing
+            raise
 
-        super().reset(seed=seed)
-        self.np_random.bit_generator.state = rng.bit_generator.state  # the draws made above
+        if seed is not None:
+            super().reset(seed=seed)
+            self.np_random.bit_generator.state = rng.bit_generator.state  # the draws above
         self._episode = episode
         info = self._info(dropped=False, step_info=None)
         if error is not None:
@@ -446,11 +452,13 @@ class FrictionlessGraspEnv(GraspEnvBase):
 
     def _start(
         self, rng: np.random.Generator, opts: dict[str, Any]
-    ) -> tuple[Simulator, State, str | None, Simulator]:
+    ) -> tuple[Simulator, State, str | None, Simulator, Any]:
         """The simulator, start state, pre-liftoff error and nominal simulator of a new
-        episode, drawn from ``rng``; changes no episode state (it fills only the simulator
-        and pre-liftoff caches). With ``uncertainty`` the simulated object is a perturbation
-        of the nominal one, and the start is made on it."""
+        episode, drawn from ``rng``, and the key of the start where it is one the env keeps
+        (a bundled scene's or a pool entry's, unperturbed; else None); changes no episode
+        state (it fills only the simulator and start caches). With ``uncertainty`` the
+        simulated object is a perturbation of the nominal one, and the start is made on
+        it."""
         if "scene" in opts:
             scene = opts["scene"]
             sim, key = Simulator(scene, contact_tol=self.contact_tol), None
@@ -472,11 +480,11 @@ class FrictionlessGraspEnv(GraspEnvBase):
             sim, key = Simulator(scene, contact_tol=self.contact_tol), None
         if "palm" in opts or "fingers" in opts:
             hand = option_hand(scene, opts, self.contact_tol)
-            return sim, sim.settle(scene.object.start_pose, hand), None, nominal
+            return sim, sim.settle(scene.object.start_pose, hand), None, nominal, None
         state, error = self._first_state(sim, key)
         if self.start == "random":
-            state = self._perturb(sim, state, rng)
-        return sim, state, error, nominal
+            return sim, self._perturb(sim, state, rng), error, nominal, None
+        return sim, state, error, nominal, key if key in self._starts else None
 
     def _scene_of(self, key: Any) -> Scene:
         """The scene of a bundled scene's index, or of the shape pool's entry ``(index,
@@ -584,15 +592,6 @@ class FrictionlessGraspEnv(GraspEnvBase):
         if self.always_compute_grip:
             info["grip_objective"] = grip
         return info
-
-
-# ---------------------------------------------------------------------- helpers
-def _copy_generator(rng: np.random.Generator) -> np.random.Generator:
-    """A generator in ``rng``'s state, drawing what it would draw (a third of
-    ``copy.deepcopy``'s cost, which goes through pickling)."""
-    bits = type(rng.bit_generator)(0)
-    bits.state = rng.bit_generator.state
-    return np.random.Generator(bits)
 
 
 __all__ = ["REWARD_TERMS", "FrictionlessGraspEnv"]

@@ -45,6 +45,8 @@ INFO_VALUES = {"grip_force": kernel.I_GRIP_FORCE} | {
     key: kernel.I_TERMS + i for i, key in enumerate(REWARD_KEYS)
 }
 
+_FLAG_COLUMNS, _VALUE_COLUMNS = list(INFO_FLAGS.values()), list(INFO_VALUES.values())
+
 
 class FrictionlessGraspVectorEnv(VectorEnv):
     """``num_envs`` episodes of ``FrictionlessGrasp-v0`` (or another id's arguments) stepped
@@ -54,8 +56,9 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         num_envs: how many sub-envs.
         max_episode_steps: a time limit as ``gymnasium.make`` adds one to a single env: the
             episodes end at the sooner of it and ``time_limit``.
-        threads: threads the step runs on (numba's; default: as many as the machine's
-            cores). The results do not depend on it.
+        threads: how many of numba's threads share a step (default: as many as the
+            machine's cores; fewer where ``numba.set_num_threads`` has lowered numba's
+            count). The results do not depend on it.
         **kwargs: the single env's arguments (:class:`FrictionlessGraspEnv`).
 
     ``infos`` hold, for every sub-env, ``is_success``, ``form_closure``, ``grip_force``,
@@ -90,8 +93,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {self.render_mode!r}")
         self.envs = [FrictionlessGraspEnv(**kwargs) for _ in range(self.num_envs)]
         first = self.envs[0]
-        for env in self.envs[1:]:  # one set of simulators and start states (the shape pool's)
-            env._sims, env._starts = first._sims, first._starts
+        for env in self.envs[1:]:  # one set of simulators, starts and their first episodes
+            env._sims, env._starts, env._episodes = first._sims, first._starts, first._episodes
         self.single_action_space = first.action_space
         self.single_observation_space = first.observation_space
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -108,6 +111,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         self._ep = np.zeros((n, kernel.EPISODE))
         self._obs = np.zeros((n, size), dtype=np.float32)
         self._models = None
+        self._sources: list = []  # the model each row of _models copies
         self._seen = np.zeros((n, size), dtype=np.float32)
         self._info = np.zeros((n, kernel.INFO))
         self._status = np.zeros(n, dtype=np.int64)
@@ -115,10 +119,13 @@ class FrictionlessGraspVectorEnv(VectorEnv):
     # ------------------------------------------------------------------ episodes and rows
     def _load(self, i: int) -> None:
         """Copy sub-env ``i``'s episode into row ``i`` of the batch (its model's arrays too:
-        sub-envs of one scene would share them, and their reference counts, across
-        threads)."""
+        sub-envs of one scene would share them, and their reference counts, across threads;
+        a row whose new episode has the model of its last keeps its copy)."""
         episode = self.envs[i]._episode
-        self._models[i] = _own_arrays(episode.sim.compiled_model)
+        model = episode.sim.compiled_model
+        if self._sources[i] is not model:
+            self._models[i] = _own_arrays(model)
+            self._sources[i] = model
         self._consts[i] = episode.consts
         self._write(i, episode)
 
@@ -179,8 +186,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
                     rng.bit_generator.state = bits
             raise
         if self._models is None:
-            self._models = typed.List([_own_arrays(env._episode.sim.compiled_model)
-                                       for env in self.envs])  # fmt: skip
+            self._sources = [env._episode.sim.compiled_model for env in self.envs]
+            self._models = typed.List([_own_arrays(model) for model in self._sources])
         for i in range(self.num_envs):
             self._load(i)
         return np.stack(observations), self._merged(infos)
@@ -205,16 +212,15 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         actions = batch_actions(actions, (self.num_envs, *self.single_action_space.shape))
         friction_jams = self._friction_jams(actions)
         actions[friction_jams] = 0.0  # those hands stay where they are
-        numba.set_num_threads(self.threads)
         step_batch(
             self._models, self._consts, self._settings, self._q, self._h, self._keys, self._rows,
             self._counts, self._an, self._ep, self._obs, self._low, self._high, actions,
-            self._seen, self._info, self._status,
+            self._seen, self._info, self._status, self.threads,
         )  # fmt: skip
         if self.envs[0]._uncertain:
             self._show_nominal()
         errors = {}
-        for i in np.flatnonzero(self._status != kernel.OK):
+        for i in np.flatnonzero(self._status) if self._status.any() else ():
             episode = self._episode(i)  # Python takes the step over, as the single env does
             self._info[i] = 0.0
             self._seen[i], self._info[i], error = episode.advance(
@@ -257,8 +263,9 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         terminated = info[:, kernel.I_TERMINATED] != 0.0
         truncated = info[:, kernel.I_TRUNCATED] != 0.0
         infos = self._step_infos(info, errors, friction_jams)
-        done = np.flatnonzero(terminated | truncated)
-        if len(done):
+        ended = terminated | truncated
+        if ended.any():
+            done = np.flatnonzero(ended)
             final = {"final_obs": observations.copy(), "_final_obs": np.zeros(self.num_envs, bool)}
             final["_final_obs"][done] = True
             infos |= final
@@ -282,10 +289,12 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         out: dict[str, np.ndarray] = {}
         if self.envs[0].friction > 0.0:
             out["friction_jam"], out["_friction_jam"] = friction_jams.copy(), everyone
-        for key, column in INFO_FLAGS.items():
-            out[key], out[f"_{key}"] = info[:, column] != 0.0, everyone
-        for key, column in INFO_VALUES.items():
-            out[key], out[f"_{key}"] = info[:, column].copy(), everyone
+        flags = (info[:, _FLAG_COLUMNS] != 0.0).T.copy()  # a row per key: one copy for all
+        values = info[:, _VALUE_COLUMNS].T.copy()
+        for j, key in enumerate(INFO_FLAGS):
+            out[key], out[f"_{key}"] = flags[j], everyone
+        for j, key in enumerate(INFO_VALUES):
+            out[key], out[f"_{key}"] = values[j], everyone
         if errors:
             out["sim_error"] = np.array([errors.get(i) for i in range(self.num_envs)], object)
             out["_sim_error"] = np.isin(np.arange(self.num_envs), list(errors))

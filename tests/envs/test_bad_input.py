@@ -320,6 +320,23 @@ def test_refused_reset_keeps_the_random_generator() -> None:
     np.testing.assert_array_equal(i1["palm_pose"], i2["palm_pose"])
 
 
+def test_refused_unseeded_reset_takes_back_its_draws() -> None:
+    """An unseeded reset refused after it drew from the env's generator (which of two scenes)
+    puts the generator back: the next resets are the twin's, scene for scene."""
+    envs = [FrictionlessGraspEnv(["fig13", "square"], start="random") for _ in range(2)]
+    for env in envs:
+        env.reset(seed=4)
+    env, twin = envs
+    drawn = env.np_random.bit_generator.state
+    assert_refused(lambda: env.reset(options={"palm": (0.015, 0.3, 0.0)}), r"palm", r"refused")
+    assert env.np_random.bit_generator.state == drawn
+    for _ in range(4):
+        (o1, i1), (o2, i2) = env.reset(), twin.reset()
+        np.testing.assert_array_equal(o1, o2)
+        np.testing.assert_array_equal(i1["palm_pose"], i2["palm_pose"])
+        assert env.scene.name == twin.scene.name
+
+
 @pytest.mark.parametrize(
     "convert",
     [lambda a: a.astype(np.longdouble), lambda a: np.ma.masked_array(a), lambda a: a.tolist()],

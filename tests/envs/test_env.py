@@ -17,6 +17,7 @@ import grasp_env
 from grasp_env.core import geometry as geo
 from grasp_env.envs import ENV_ID, MAX_EPISODE_STEPS, REWARD_THRESHOLD, VECTOR_ENTRY_POINT
 from grasp_env.envs import frictionless_grasp as fg_module
+from grasp_env.envs.episode import Episode, episode_constants
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup, random_convex_polygon
 from grasp_env.kernel.observation import observation_bounds
@@ -322,6 +323,32 @@ def test_seeded_rollout_is_reproducible():
         assert _same(a, b)
     # The rollout did something: the fingers touched the object at some step.
     assert any(c["body"].startswith("finger") for step in runs[0] for c in step[-1]["contacts"])
+
+
+def test_episodes_from_a_kept_start_begin_as_a_fresh_analysis_would():
+    """A reset to a start the env keeps (here a pool entry) copies the first episode from it
+    instead of analysing the start again: each such episode must be, array for array, the
+    one built afresh, whatever the earlier episodes from that start did."""
+    env = gym.make("FrictionlessGraspLift-v0", shape_pool=3, time_limit=12).unwrapped
+    rng = np.random.default_rng(0)
+    bounds = env._settings, env._obs_low, env._obs_high
+    env.reset(seed=0)
+    for _ in range(10):
+        ended = False
+        while not ended:
+            *_, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 5))
+            ended = terminated or truncated
+        obs, _ = env.reset()
+        got = env._episode
+        consts = episode_constants(
+            got.state.scene, got.state, env.max_finger_step, env.max_palm_step,
+            got.sim.model.rho,
+        )  # fmt: skip
+        fresh = Episode(got.sim, got.state, consts, env._settings, len(env._obs_low))
+        np.testing.assert_array_equal(obs, fresh.observation(*bounds))
+        for name in ("consts", "q", "h", "keys", "rows", "an", "ep", "obs"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(fresh, name), name)
+    assert len(env._episodes) == 3  # 11 episodes from 3 starts: the copies were used
 
 
 @pytest.mark.parametrize("palm_control", [False, True])
