@@ -42,19 +42,29 @@ def take_next(typingctx, counter):
 
 @njit(cache=CACHE)
 def step_one(
-    i, models, consts, settings, q, h, keys, rows, counts, an, ep, obs, low, high, actions,
-    seen, info, status,
+    i, models, consts, q, h, keys, rows, counts, an, ep, obs, actions, seen, info, status, mine,
 ) -> None:  # fmt: skip
-    """One step of episode ``i`` (see :func:`step_batch`)."""
+    """One step of episode ``i`` (see :func:`step_batch`) in the calling thread's buffers
+    ``mine`` (:func:`thread_buffers`): rows of the stacked arrays are views sharing one
+    reference count, which every call would change from every thread at once, and fresh
+    copies would cost an allocation each."""
+    settings, low, high, my_consts, my_q, my_h, my_keys, my_rows, my_an, my_ep, my_obs = mine[:11]
+    my_action, my_info = mine[11:]
     m = counts[i]
-    # private copies: rows of the stacked arrays are views sharing one reference count,
-    # which every call would change from every thread at once
-    state = (q[i].copy(), h[i].copy(), keys[i, :m].copy(), rows[i, :m].copy())
-    mine_an, mine_ep, mine_obs = an[i].copy(), ep[i].copy(), obs[i].copy()
-    mine_info = np.zeros(info.shape[1])
+    my_consts[:] = consts[i]
+    my_q[:] = q[i]
+    my_h[:] = h[i]
+    my_keys[:m] = keys[i, :m]
+    my_rows[:m] = rows[i, :m]
+    my_an[:] = an[i]
+    my_ep[:] = ep[i]
+    my_obs[:] = obs[i]
+    my_action[:] = actions[i]
+    my_info[:] = 0.0
+    state = (my_q, my_h, my_keys[:m], my_rows[:m])
     result = step.step_env(
-        models[i], consts[i].copy(), settings.copy(), state, mine_an, mine_ep, mine_obs,
-        low.copy(), high.copy(), actions[i].copy(), mine_info,
+        models[i], my_consts, settings, state, my_an, my_ep, my_obs, low, high, my_action,
+        my_info,
     )  # fmt: skip
     code, observed, _, _, q_new, h_new, new_keys, new_rows, _ = result
     n = new_keys.shape[0]
@@ -68,11 +78,24 @@ def step_one(
     counts[i] = n
     keys[i, :n] = new_keys
     rows[i, :n] = new_rows
-    an[i] = mine_an
-    ep[i] = mine_ep
-    obs[i] = mine_obs
-    info[i] = mine_info
+    an[i] = my_an
+    ep[i] = my_ep
+    obs[i] = my_obs
+    info[i] = my_info
     seen[i] = observed
+
+
+@njit(cache=CACHE)
+def thread_buffers(settings, low, high, consts, q, h, keys, rows, an, ep, obs, actions, info):
+    """One thread's copies of the arrays every episode reads (``settings``, ``low``,
+    ``high``) and its buffers for one episode's rows of the others, in
+    :func:`step_one`'s order."""
+    return (
+        settings.copy(), low.copy(), high.copy(), np.empty(consts.shape[1]),
+        np.empty(q.shape[1]), np.empty(h.shape[1]), np.empty(keys.shape[1:], keys.dtype),
+        np.empty(rows.shape[1:]), np.empty(an.shape[1]), np.empty(ep.shape[1]),
+        np.empty(obs.shape[1], obs.dtype), np.empty(actions.shape[1]), np.empty(info.shape[1]),
+    )  # fmt: skip
 
 
 @njit(cache=CACHE, parallel=True)
@@ -91,11 +114,13 @@ def step_batch(
     n = q.shape[0]
     counter = np.zeros(1, dtype=np.int64)
     for _ in prange(min(threads, n)):
+        mine = thread_buffers(settings, low, high, consts, q, h, keys, rows, an, ep, obs,
+                              actions, info)  # fmt: skip
         while True:
             i = take_next(counter)
             if i >= n:
                 break
             step_one(
-                np.int64(i), models, consts, settings, q, h, keys, rows, counts, an, ep, obs,
-                low, high, actions, seen, info, status,
+                np.int64(i), models, consts, q, h, keys, rows, counts, an, ep, obs, actions,
+                seen, info, status, mine,
             )  # fmt: skip
