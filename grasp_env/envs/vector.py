@@ -56,9 +56,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         num_envs: how many sub-envs.
         max_episode_steps: a time limit as ``gymnasium.make`` adds one to a single env: the
             episodes end at the sooner of it and ``time_limit``.
-        threads: how many of numba's threads share a step (default: as many as the
-            machine's cores; fewer where ``numba.set_num_threads`` has lowered numba's
-            count). The results do not depend on it.
+        threads: threads a step runs on (numba's, set for the call; default: as many as the
+            machine's cores). The results do not depend on it.
         **kwargs: the single env's arguments (:class:`FrictionlessGraspEnv`).
 
     ``infos`` hold, for every sub-env, ``is_success``, ``form_closure``, ``grip_force``,
@@ -212,6 +211,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         actions = batch_actions(actions, (self.num_envs, *self.single_action_space.shape))
         friction_jams = self._friction_jams(actions)
         actions[friction_jams] = 0.0  # those hands stay where they are
+        if numba.get_num_threads() != self.threads:  # else idle threads would spin-wait
+            numba.set_num_threads(self.threads)
         step_batch(
             self._models, self._consts, self._settings, self._q, self._h, self._keys, self._rows,
             self._counts, self._an, self._ep, self._obs, self._low, self._high, actions,
