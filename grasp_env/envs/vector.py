@@ -221,7 +221,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         if self.envs[0]._uncertain:
             self._show_nominal()
         errors = {}
-        for i in np.flatnonzero(self._status) if self._status.any() else ():
+        for i in np.flatnonzero(self._status != kernel.OK):
             episode = self._episode(i)  # Python takes the step over, as the single env does
             self._info[i] = 0.0
             self._seen[i], self._info[i], error = episode.advance(
