@@ -1,7 +1,7 @@
 """Batched env throughput: env steps/s of ``gymnasium.make_vec(env_id, num_envs=N)`` (the
 batched env, one compiled call per step) against CartPole-v1's ``SyncVectorEnv`` and its own
 numpy-batched vector env, measured in the same run; against N (1 to 256) and threads (1, 2);
-the cost of a reset; and where the time of a batched step goes.
+the cost of a reset; where the time of a batched step goes; and what its moves cost, by kind.
 
 Random actions (uniform, drawn in bulk from a seeded generator), resets included. Random
 shapes are drawn from a shape pool (``shape_pool``, prepared before timing: its entries are
@@ -20,10 +20,12 @@ from pathlib import Path
 import gymnasium as gym
 import numba
 import numpy as np
+from numba import njit
 
 import grasp_env
 from benchmarks.common import headless, page_main, table, write
 from grasp_env.kernel import step as kernel
+from grasp_env.sim import move
 
 IDS = ("FrictionlessGrasp-v0", "FrictionlessGraspRandomShapes-v0", "FrictionlessGraspLift-v0")
 #: Pool of random shapes for the ids that draw them, prepared before timing.
@@ -46,14 +48,18 @@ def make(env_id: str, n: int, threads: int | None = None, pool: int = POOL):
 
 
 def prepare_pool(venv) -> None:
-    """Make every entry of the batched env's shape pool (if it has one) before timing: in
-    training, they are made as resets first draw them, then reused."""
+    """Make every entry of the batched env's shape pool (if it has one) and its first episode
+    before timing: in training, they are made as resets first draw them, then reused (a pool
+    of 1024 is drawn through in the first few thousand resets of a run)."""
     first = venv.envs[0]
     for entry in range(first.shape_pool or 0):
         key = (0, entry)
         if key not in first._sims:
             first._sims[key] = grasp_env.Simulator(first._scene_of(key), first.contact_tol)
-        first._first_state(first._sims[key], key)
+        sim = first._sims[key]
+        state, error = first._first_state(sim, key)
+        if error is None:
+            first._new_episode(sim, state, None, key)
 
 
 def rate(venv: gym.vector.VectorEnv, budget: float, seed: int) -> float:
@@ -138,11 +144,76 @@ def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, f
     return {k: v / steps for k, v in parts.items()} | {"steps Python took over": fallbacks}
 
 
+@njit
+def _timed_moves(model, q, h, target, keys, reps):
+    """The last of ``reps`` runs of the compiled move (:func:`grasp_env.sim.move.run`, as a
+    batched step calls it): ``(out, pose solves)``; a move that raises counts as touched."""
+    out, solves = np.zeros(move.OUT_SIZE), np.zeros(1, dtype=np.int64)
+    for _ in range(reps):
+        solves[0] = 0
+        try:
+            out = move.run(model, q, h, target, keys, True, solves)[0]
+        except Exception:  # timed as far as it got (Python would take the step over)
+            out = np.zeros(move.OUT_SIZE)
+    return out, solves[0]
+
+
+#: Bands of pose solves a move needs, for :func:`move_costs`.
+SOLVE_BANDS = ((0, 0), (1, 3), (4, 10), (11, 50), (51, None))
+
+
+def move_costs(env_id: str, steps: int, reps: int = 5, pool: int = POOL) -> list[tuple]:
+    """What the moves of ``steps`` random-action steps of a single env cost in compiled code,
+    by kind: the moves that touch nothing (the hand clear of an object resting on the
+    support) and the others by the pose solves they need. Each move is replayed ``reps``
+    times from the state it started in; a replay's time includes one call from Python (about
+    a microsecond over ``reps``). Rows ``(kind, share of moves, share of time, mean
+    seconds)`` for the kinds that occurred."""
+    venv = make(env_id, 1, threads=1, pool=pool)
+    env = venv.envs[0]
+    rng = np.random.default_rng(0)
+    space = env.action_space
+    env.reset(seed=0)
+    moves = []
+    for _ in range(steps):
+        ep = env._episode
+        action = rng.uniform(space.low, space.high)
+        target = kernel.target_of(ep.consts, env._settings, ep.h, action)[0]
+        moves.append((ep.sim.compiled_model, ep.q.copy(), ep.h.copy(), target, ep.keys.copy()))
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    kinds, times = [], []
+    for args in moves:
+        _timed_moves(*args, 1)
+        start = time.perf_counter()
+        out, solves = _timed_moves(*args, reps)
+        times.append((time.perf_counter() - start) / reps)
+        kinds.append(-1 if out[move.OUT_UNTOUCHED] else solves)
+    kinds, times = np.array(kinds), np.array(times)
+    groups = [("touch nothing", kinds == -1)]
+    for lo, hi in SOLVE_BANDS:
+        label = f"{lo}+" if hi is None else (f"{lo}" if lo == hi else f"{lo}-{hi}")
+        upper = np.inf if hi is None else hi
+        groups.append((f"touch, {label} pose solves", (kinds >= lo) & (kinds <= upper)))
+    return [
+        (label, mask.mean(), times[mask].sum() / times.sum(), times[mask].mean())
+        for label, mask in groups
+        if mask.any()
+    ]
+
+
 def run(
-    quick: bool, out: Path, *, pool: int = POOL, ids: tuple = IDS, budget: float | None = None
+    quick: bool,
+    out: Path,
+    *,
+    pool: int = POOL,
+    ids: tuple = IDS,
+    budget: float | None = None,
+    moves: int | None = None,
 ) -> Path:
-    """Measure and write the page; ``pool``, ``ids`` and ``budget`` (seconds per
-    configuration and round) make a smaller run."""
+    """Measure and write the page; ``pool``, ``ids``, ``budget`` (seconds per configuration
+    and round) and ``moves`` (steps whose moves are replayed) make a smaller run."""
     headless()
     rounds = 1 if quick else 3
     budget = budget or (0.5 if quick else 3.0)
@@ -225,6 +296,25 @@ def run(
             for k, v in parts.items()
         )
         lines.append(f"- {env_id}: {cells}")
+    moves = moves or (500 if quick else 4000)
+    lines += [
+        "",
+        f"## What the moves cost, by kind ({moves:,} random-action steps of a single env)",
+        "",
+        "Each move replayed in compiled code from the state it started in (its time includes "
+        "a fifth of one call from Python). A move that touches the object costs in proportion "
+        "to the pose solves it needs, each with its motion LP, contact detection and checks "
+        "around it.",
+        "",
+        *table(
+            ["env", "moves that", "share of moves", "share of time", "mean us"],
+            [
+                [env_id, kind, f"{moves_share:.1%}", f"{time_share:.1%}", f"{1e6 * mean:.1f}"]
+                for env_id in ids
+                for kind, moves_share, time_share, mean in move_costs(env_id, moves, pool=pool)
+            ],
+        ),
+    ]
     return write(out, "Batched env throughput", lines)
 
 
