@@ -167,8 +167,8 @@ def move_costs(env_id: str, steps: int, reps: int = 5, pool: int = POOL) -> list
     by kind: the moves that touch nothing (the hand clear of an object resting on the
     support) and the others by the pose solves they need. Each move is replayed ``reps``
     times from the state it started in; a replay's time includes one call from Python (about
-    a microsecond over ``reps``). Rows ``(kind, share of moves, share of time, mean
-    seconds)`` for the kinds that occurred."""
+    a microsecond over ``reps``). Rows ``(kind, moves, share of moves, share of
+    time, mean seconds)`` for the kinds that occurred."""
     venv = make(env_id, 1, threads=1, pool=pool)
     env = venv.envs[0]
     rng = np.random.default_rng(0)
@@ -197,7 +197,7 @@ def move_costs(env_id: str, steps: int, reps: int = 5, pool: int = POOL) -> list
         upper = np.inf if hi is None else hi
         groups.append((f"touch, {label} pose solves", (kinds >= lo) & (kinds <= upper)))
     return [
-        (label, mask.mean(), times[mask].sum() / times.sum(), times[mask].mean())
+        (label, int(mask.sum()), mask.mean(), times[mask].sum() / times.sum(), times[mask].mean())
         for label, mask in groups
         if mask.any()
     ]
@@ -307,11 +307,11 @@ def run(
         "around it.",
         "",
         *table(
-            ["env", "moves that", "share of moves", "share of time", "mean us"],
+            ["env", "moves that", "moves", "share of moves", "share of time", "mean us"],
             [
-                [env_id, kind, f"{moves_share:.1%}", f"{time_share:.1%}", f"{1e6 * mean:.1f}"]
+                [env_id, kind, count, f"{share:.1%}", f"{time_share:.1%}", f"{1e6 * mean:.1f}"]
                 for env_id in ids
-                for kind, moves_share, time_share, mean in move_costs(env_id, moves, pool=pool)
+                for kind, count, share, time_share, mean in move_costs(env_id, moves, pool=pool)
             ],
         ),
     ]

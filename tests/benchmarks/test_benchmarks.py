@@ -76,10 +76,10 @@ def test_move_costs_put_each_move_in_one_kind():
     rows = batched.move_costs("FrictionlessGraspLift-v0", 40, reps=1, pool=2)
     kinds = [row[0] for row in rows]
     assert kinds[0] == "touch nothing" and len(set(kinds)) == len(kinds)
-    # the shares of moves are counts over 40: each move is in exactly one kind
-    assert sum(round(40 * row[1]) for row in rows) == 40
-    assert sum(row[2] for row in rows) == pytest.approx(1.0)
-    assert all(row[3] > 0.0 for row in rows)
+    assert sum(row[1] for row in rows) == 40  # each move in exactly one kind
+    assert all(row[2] == row[1] / 40 for row in rows)
+    assert sum(row[3] for row in rows) == pytest.approx(1.0)
+    assert all(row[4] > 0.0 for row in rows)
 
 
 def test_profile_baseline_columns(tmp_path):
