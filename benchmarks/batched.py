@@ -158,11 +158,13 @@ def _timed_moves(model, q, h, target, keys, reps):
     return out, solves[0]
 
 
+#: Replays of each move :func:`move_costs` times.
+REPLAYS = 5
 #: Bands of pose solves a move needs, for :func:`move_costs`.
 SOLVE_BANDS = ((0, 0), (1, 3), (4, 10), (11, 50), (51, None))
 
 
-def move_costs(env_id: str, steps: int, reps: int = 5, pool: int = POOL) -> list[tuple]:
+def move_costs(env_id: str, steps: int, reps: int = REPLAYS, pool: int = POOL) -> list[tuple]:
     """What the moves of ``steps`` random-action steps of a single env cost in compiled code,
     by kind: the moves that touch nothing (the hand clear of an object resting on the
     support) and the others by the pose solves they need. Each move is replayed ``reps``
@@ -301,10 +303,10 @@ def run(
         "",
         f"## What the moves cost, by kind ({moves:,} random-action steps of a single env)",
         "",
-        "Each move replayed in compiled code from the state it started in (its time includes "
-        "a fifth of one call from Python). A move that touches the object costs in proportion "
-        "to the pose solves it needs, each with its motion LP, contact detection and checks "
-        "around it.",
+        "Each move replayed in compiled code from the state it started in, "
+        f"{REPLAYS} times (its time includes 1/{REPLAYS} of one call from Python). A move "
+        "that touches the object costs in proportion to the pose solves it needs, each with "
+        "its motion LP, contact detection and checks around it.",
         "",
         *table(
             ["env", "moves that", "moves", "share of moves", "share of time", "mean us"],
