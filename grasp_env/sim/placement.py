@@ -31,6 +31,18 @@ def world_points(
     """World coordinates of the stacked body-frame ``points`` for object pose ``q`` and hand
     configuration ``h``; rows before ``n_vertices`` are points (rotated and moved), the rest
     directions (rotated only). ``half`` is half the palm width (the joints' offset)."""
+    out = np.empty_like(points)
+    world_points_into(points, body, n_vertices, half, q, h, out)
+    return out
+
+
+@njit(cache=CACHE, inline="always")
+def world_points_into(
+    points: np.ndarray, body: np.ndarray, n_vertices: int, half: float, q: np.ndarray,
+    h: np.ndarray, out: np.ndarray,
+) -> None:  # fmt: skip
+    """:func:`world_points` into ``out`` (for a loop that places the bodies at every
+    iteration without allocating)."""
     th = h[2]
     c, s = math.cos(th), math.sin(th)
     ox = (q[0], h[0], h[0] - c * half, h[0] + c * half)
@@ -38,7 +50,6 @@ def world_points(
     th1, th2 = th + h[3], th + h[4]
     cos_b = (math.cos(q[2]), c, math.cos(th1), math.cos(th2))
     sin_b = (math.sin(q[2]), s, math.sin(th1), math.sin(th2))
-    out = np.empty_like(points)
     for i in range(points.shape[0]):
         b = body[i]
         x, y = points[i, 0], points[i, 1]
@@ -57,7 +68,6 @@ def world_points(
             else:
                 out[i, 0] += ox[3]
                 out[i, 1] += oy[3]
-    return out
 
 
 @njit(cache=CACHE)
@@ -70,11 +80,20 @@ def contact_rows(
     The edge parameter places the vertex's projection along its edge (0 at the edge's first
     vertex, 1 at its second); on the support it is 0.5 and the length infinite.
 
-    The five are views of one new array: one allocation instead of five, at every Newton
-    iteration and check.
+    The five are views of one new array: one allocation instead of five, at every check.
     """
+    rows = np.empty((keys.shape[0], 7))
+    contact_rows_into(world, n_object, n_vertices, keys, rows)
+    return rows[:, 0:2], rows[:, 2:4], rows[:, 4], rows[:, 5], rows[:, 6]
+
+
+@njit(cache=CACHE, inline="always")
+def contact_rows_into(
+    world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray, rows: np.ndarray
+) -> None:
+    """:func:`contact_rows` into the columns of ``rows`` (m, 7): points, normals, gaps,
+    edge parameters, edge lengths (for Newton's iterations, without allocating)."""
     m = keys.shape[0]
-    rows = np.empty((m, 7))
     P, N, F, T, L = rows[:, 0:2], rows[:, 2:4], rows[:, 4], rows[:, 5], rows[:, 6]
     for i in range(m):
         body, kind, k, j = keys[i, 0], keys[i, 1], keys[i, 2], keys[i, 3]
@@ -106,7 +125,6 @@ def contact_rows(
             N[i, 0], N[i, 1] = nx, ny
         else:
             N[i, 0], N[i, 1] = -nx, -ny
-    return P, N, F, T, L
 
 
 @njit(cache=CACHE)

@@ -14,7 +14,11 @@ import numpy as np
 from numba import njit
 
 from grasp_env.compiled import CACHE
-from grasp_env.sim.placement import TIP, contact_rows, world_points
+from grasp_env.sim.placement import (
+    TIP,
+    contact_rows_into,
+    world_points_into,
+)
 from grasp_env.solvers import dense
 
 #: Newton iterations before a solve counts as failed.
@@ -25,14 +29,20 @@ ITERATIONS = 30
 def constraint_matrix(P: np.ndarray, N: np.ndarray, com: np.ndarray) -> np.ndarray:
     """``V_ob`` (m, 3) (eq. 9): row i maps an object twist to the normal velocity of the
     object's material point at contact i, ``[n_i, r_i x n_i]`` with ``r_i = p_i - com``."""
-    m = P.shape[0]
-    V = np.empty((m, 3))
-    for i in range(m):
+    V = np.empty((P.shape[0], 3))
+    constraint_matrix_into(P, N, com, V)
+    return V
+
+
+@njit(cache=CACHE, inline="always")
+def constraint_matrix_into(P: np.ndarray, N: np.ndarray, com: np.ndarray, V: np.ndarray) -> None:
+    """:func:`constraint_matrix` into ``V`` (m, 3); ``com``'s first two entries are the
+    centre of mass."""
+    for i in range(P.shape[0]):
         rx, ry = P[i, 0] - com[0], P[i, 1] - com[1]
         V[i, 0] = N[i, 0]
         V[i, 1] = N[i, 1]
         V[i, 2] = rx * N[i, 1] - ry * N[i, 0]
-    return V
 
 
 @njit(cache=CACHE)
@@ -83,9 +93,18 @@ def newton(
     q = q0.copy()
     last = np.inf
     redundant = False
+    # the iterations' arrays, made once (a solve runs up to ITERATIONS of them)
+    world = np.empty_like(points)
+    rows = np.empty((m, 7))
+    P, N, F = rows[:, 0:2], rows[:, 2:4], rows[:, 4]
+    J = np.empty((m, 3))
+    LU = np.empty((3, 3))
+    perm = np.empty(3, dtype=np.int64)
+    rhs = np.empty(m)
+    du = np.empty(3)
     for _ in range(ITERATIONS):
-        world = world_points(points, body, n_vertices, half, q, h)
-        P, N, F, _, _ = contact_rows(world, n_object, n_vertices, keys)
+        world_points_into(points, body, n_vertices, half, q, h, world)
+        contact_rows_into(world, n_object, n_vertices, keys, rows)
         res = 0.0
         for i in range(m):
             res = max(res, abs(F[i]))
@@ -94,21 +113,33 @@ def newton(
         if redundant and res <= 0.5 * tol and res > 0.5 * last:
             return q, True
         last = res
-        J = constraint_matrix(P, N, q[:2])
+        constraint_matrix_into(P, N, q, J)
         for i in range(m):
             for k in range(3):
                 J[i, k] *= scale[k]
+            rhs[i] = -F[i]
         ok = False
         # square and well conditioned (its smallest singular value above tol / size, as the
         # rows, of norm at most 4, bound the other two): no SVD needed
-        if m == 3 and abs(dense.det(J)) > max(1e-8, 16.0 * tol / size):
-            du, ok = dense.solve(J, -F)
+        if m == 3:
+            LU[:] = J
+            sign = dense.lu_in_place(LU, perm)
+            if abs(dense.lu_det(LU, sign)) > max(1e-8, 16.0 * tol / size):
+                ok = dense.lu_solve(LU, perm, rhs, du)
         if not ok:
-            du, rank = dense.lstsq(J, -F, 1e-12, tol / size)
+            du, rank = dense.lstsq(J, rhs, 1e-12, tol / size)
             redundant = rank < m
-        if np.abs(du).max() > size:
+        largest = 0.0  # NaN if any entry is (as numpy's max), which no bound rejects
+        for k in range(3):
+            step = abs(du[k])
+            if step != step:
+                largest = step
+                break
+            largest = max(largest, step)
+        if largest > size:
             return q, False  # a near-singular step far outside Newton's basin
-        q = q + du * scale
+        for k in range(3):
+            q[k] = q[k] + du[k] * scale[k]
         for k in range(3):
             if not math.isfinite(q[k]):
                 return q, False
@@ -134,20 +165,42 @@ def newton_held(
     rows = np.array([1.0, 1.0, 1.0 / rho])  # force, force, moment / rho
     q = q0.copy()
     lam = np.zeros(m)
+    # the iterations' arrays, made once
+    world = np.empty_like(points)
+    contact = np.empty((m, 7))
+    P, N, F = contact[:, 0:2], contact[:, 2:4], contact[:, 4]
+    V = np.empty((m, 3))
+    W = np.empty((3, m))  # wrench columns
+    eq = np.empty(3)
+    dM = np.empty((3, 3))
+    J = np.empty((m + 3, 3 + m))
+    rhs = np.empty(m + 3)
+    LU = np.empty((m + 3, m + 3))
+    perm = np.empty(m + 3, dtype=np.int64)
+    dz = np.empty(m + 3)
     for it in range(ITERATIONS):
-        world = world_points(points, body, n_vertices, half, q, h)
-        P, N, F, _, _ = contact_rows(world, n_object, n_vertices, keys)
-        V = constraint_matrix(P, N, q[:2])
-        W = V.T.copy()  # (3, m) wrench columns
+        world_points_into(points, body, n_vertices, half, q, h, world)
+        contact_rows_into(world, n_object, n_vertices, keys, contact)
+        constraint_matrix_into(P, N, q, V)
+        W[:] = V.T
         if it == 0:
             lam, ok = independent_forces(W, g)
             if not ok:
                 lam = dense.lstsq(W, g, -1.0)[0]
-        eq = (dense.matvec(W, lam) - g) * rows
-        if np.abs(F).max() <= newton_tol and np.abs(eq).max() <= 1e-12:
+        for j in range(3):
+            acc = 0.0
+            for i in range(m):
+                acc += W[j, i] * lam[i]
+            eq[j] = (acc - g[j]) * rows[j]
+        solved = True  # every gap and equilibrium residual within bounds (NaN is not)
+        for i in range(m):
+            solved = solved and abs(F[i]) <= newton_tol
+        for j in range(3):
+            solved = solved and abs(eq[j]) <= 1e-12
+        if solved:
             return q, True
         # dM[j, k]: derivative of the equilibrium rows (j) by the pose (k), sum_i lam_i dw_i
-        dM = np.zeros((3, 3))
+        dM[:] = 0.0
         for i in range(m):
             rn = (P[i, 0] - q[0]) * N[i, 0] + (P[i, 1] - q[1]) * N[i, 1]
             if keys[i, 1] == TIP:
@@ -158,8 +211,7 @@ def newton_held(
                 dM[2, 2] += lam[i] * rn
             else:
                 dM[2, 2] += lam[i] * -rn
-        J = np.zeros((m + 3, 3 + m))
-        rhs = np.empty(m + 3)
+        J[:] = 0.0
         for i in range(m):
             for k in range(3):
                 J[i, k] = V[i, k] * scale[k]
@@ -170,12 +222,21 @@ def newton_held(
             for i in range(m):
                 J[m + j, 3 + i] = W[j, i] * rows[j]
             rhs[m + j] = -eq[j]
-        dz, ok = dense.solve(J, rhs)
-        if not ok:
+        LU[:] = J
+        dense.lu_in_place(LU, perm)
+        if not dense.lu_solve(LU, perm, rhs, dz):
             return q, False
-        du = dz[:3]
-        if np.abs(du).max() > size:
+        largest = 0.0  # NaN if any entry is (as numpy's max), which no bound rejects
+        for k in range(3):
+            step = abs(dz[k])
+            if step != step:
+                largest = step
+                break
+            largest = max(largest, step)
+        if largest > size:
             return q, False
-        q = q + du * scale
-        lam = lam + dz[3:]
+        for k in range(3):
+            q[k] = q[k] + dz[k] * scale[k]
+        for i in range(m):
+            lam[i] = lam[i] + dz[3 + i]
     return q, False

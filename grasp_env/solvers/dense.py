@@ -81,9 +81,20 @@ def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def _lu(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """LU factors of a square ``A`` with partial pivoting: ``(LU, perm, sign)``; an exactly
     zero pivot leaves its column unreduced (the determinant is then 0)."""
-    n = A.shape[0]
     LU = A.copy()
-    perm = np.arange(n)
+    perm = np.empty(A.shape[0], dtype=np.int64)
+    sign = lu_in_place(LU, perm)
+    return LU, perm, sign
+
+
+@njit(cache=CACHE, inline="always")
+def lu_in_place(LU: np.ndarray, perm: np.ndarray) -> float:
+    """:func:`_lu` in the caller's arrays: ``LU`` (holding ``A``) becomes its factors and
+    ``perm`` its row permutation; returns the permutation's sign (for a caller that factors
+    at every iteration without allocating)."""
+    n = LU.shape[0]
+    for k in range(n):
+        perm[k] = k
     sign = 1.0
     for k in range(n):
         p = k
@@ -103,27 +114,23 @@ def _lu(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
             LU[i, k] = f
             for j in range(k + 1, n):
                 LU[i, j] -= f * LU[k, j]
-    return LU, perm, sign
+    return sign
 
 
-@njit(cache=CACHE)
-def det(A: np.ndarray) -> float:
-    """Determinant of a square ``A`` (LU with partial pivoting)."""
-    LU, _, sign = _lu(A)
+@njit(cache=CACHE, inline="always")
+def lu_det(LU: np.ndarray, sign: float) -> float:
+    """The determinant from :func:`lu_in_place`'s factors and sign."""
     out = sign
-    for k in range(A.shape[0]):
+    for k in range(LU.shape[0]):
         out *= LU[k, k]
     return out
 
 
-@njit(cache=CACHE)
-def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
-    """``x`` with ``A x = b`` for a square ``A`` (LU with partial pivoting), and whether it
-    exists: False on an exactly zero pivot or a non-finite result (as LAPACK's
-    ``gesv`` reports a singular matrix)."""
-    n = A.shape[0]
-    LU, perm, _ = _lu(A)
-    x = np.empty(n)
+@njit(cache=CACHE, inline="always")
+def lu_solve(LU: np.ndarray, perm: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:
+    """``x`` with ``A x = b`` from :func:`lu_in_place`'s factors of ``A``, and whether it
+    exists (:func:`solve`)."""
+    n = LU.shape[0]
     for i in range(n):
         x[i] = b[perm[i]]
     for i in range(n):
@@ -131,14 +138,32 @@ def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
             x[i] -= LU[i, j] * x[j]
     for i in range(n - 1, -1, -1):
         if LU[i, i] == 0.0:
-            return x, False
+            return False
         for j in range(i + 1, n):
             x[i] -= LU[i, j] * x[j]
         x[i] /= LU[i, i]
     for i in range(n):
         if not math.isfinite(x[i]):
-            return x, False
-    return x, True
+            return False
+    return True
+
+
+@njit(cache=CACHE)
+def det(A: np.ndarray) -> float:
+    """Determinant of a square ``A`` (LU with partial pivoting)."""
+    LU, _, sign = _lu(A)
+    return lu_det(LU, sign)
+
+
+@njit(cache=CACHE)
+def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
+    """``x`` with ``A x = b`` for a square ``A`` (LU with partial pivoting), and whether it
+    exists: False on an exactly zero pivot or a non-finite result (as LAPACK's
+    ``gesv`` reports a singular matrix)."""
+    LU, perm, _ = _lu(A)
+    x = np.empty(A.shape[0])
+    ok = lu_solve(LU, perm, b, x)
+    return x, ok
 
 
 @njit(cache=CACHE)
