@@ -162,6 +162,8 @@ def _one_thread() -> None:
 #: Most ``--workers`` accepted: 4 processes per CPU. More only queue for the CPUs, each one
 #: holding an env, a torch runtime and the agents in memory.
 MAX_WORKERS = 4 * (os.cpu_count() or 1)
+#: The project's docs, whose ``training.md`` a results page links to wherever it is written.
+DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
 def results_page_problem(path: Path) -> str | None:
@@ -343,8 +345,10 @@ def main(argv: list[str] | None = None) -> None:
     print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")
     command = shlex.join(["python", "-m", "agents.evaluate", *argv])
     if args.results_page:
-        page = results_page(rows, command, utc_now(), git_commit())
-        Path(args.results_page).write_text(page)
+        target = Path(args.results_page)
+        training = os.path.relpath(DOCS / "training.md", target.resolve().parent)
+        page = results_page(rows, command, utc_now(), git_commit(), Path(training).as_posix())
+        target.write_text(page)
         print(f"wrote {args.results_page}")
     if args.readme:
         readme, page = Path(args.readme), Path(args.results_page)

@@ -174,9 +174,13 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def results_page(rows: list[dict[str, Any]], command: str, date: str, commit: str) -> str:
+def results_page(
+    rows: list[dict[str, Any]], command: str, date: str, commit: str,
+    training: str = "training.md",
+) -> str:  # fmt: skip
     """The results page (``docs/results.md``): one table per suite, the date, the commit and
-    the command that produced it, and which rows are network-only."""
+    the command that produced it, and which rows are network-only. ``training``: the link
+    from the page to ``docs/training.md``, which explains the metrics."""
     network = list(dict.fromkeys(r["policy"] for r in rows if r["test_time"] == "network"))
     others = {
         level: list(dict.fromkeys(r["policy"] for r in rows if r["test_time"] == level))
@@ -190,7 +194,7 @@ def results_page(rows: list[dict[str, Any]], command: str, date: str, commit: st
         "support at the episode's last step, with its Wilson 95% interval; y\\*/W (the grip "
         "objective in object weights) is over the successes, with a bootstrap 95% interval of "
         "the mean; `n/a` where there is nothing to average. The metrics, suites and policies: "
-        "[training.md](training.md#evaluation).",
+        f"[training.md]({training}#evaluation).",
         "",
         "**Test time** says what a policy calls when it plays: `network`, its network alone "
         "on the env's observation (`random`: nothing); `planner`, the scripted planner, which "
