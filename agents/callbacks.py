@@ -1,6 +1,7 @@
 """stable-baselines3 callbacks of training: the episode sums of the reward terms
-(:class:`RewardTermsCallback`, which ``configs/ppo.yml`` names, so zoo runs log them too), a
-progress line every so many steps and a wall-time limit (:mod:`agents.train_ppo`)."""
+(:class:`RewardTermsCallback`, which ``configs/ppo.yml`` names, so zoo runs log them too), the
+critic's warm-up before a cloned actor is fine-tuned (:class:`CriticWarmup`), a progress line
+every so many steps and a wall-time limit (:mod:`agents.train_ppo`)."""
 
 from __future__ import annotations
 
@@ -39,6 +40,45 @@ class RewardTermsCallback(BaseCallback):
         for key in keys:
             values = [episode.get(key, 0.0) for episode in self._episodes]
             self.logger.record(f"rollout/ep_{key}_mean", float(np.mean(values)))
+
+
+class CriticWarmup(BaseCallback):
+    """Trains only the value function on the rollouts of the first ``steps`` env steps.
+
+    A network cloned from an expert (:mod:`agents.imitation`) has a good actor and an
+    untrained critic. PPO's advantages come from the critic, so its first updates would move
+    the actor by noise, away from the expert's actions. Here the actor (its layers, its
+    action head and its log standard deviation) is frozen in the updates of the rollouts that
+    end by ``steps``, and the critic learns the cloned policy's values first. Named in a
+    config entry's ``callback`` list, ``- agents.callbacks.CriticWarmup: {steps: 200000}``.
+    """
+
+    def __init__(self, steps: int):
+        super().__init__()
+        if isinstance(steps, bool) or not isinstance(steps, int | float) or not steps >= 0:
+            raise ValueError(f"CriticWarmup steps must be a number >= 0, got {steps!r}")
+        self.steps = int(steps)
+
+    def _actor_parameters(self) -> list:
+        policy = self.model.policy
+        log_std = getattr(policy, "log_std", None)  # continuous actions only
+        return [
+            *policy.mlp_extractor.policy_net.parameters(),
+            *policy.action_net.parameters(),
+            *([] if log_std is None else [log_std]),
+        ]
+
+    def _freeze(self, frozen: bool) -> None:
+        for parameter in self._actor_parameters():
+            parameter.requires_grad_(not frozen)
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:  # before the update of the rollout just collected
+        warming = self.num_timesteps <= self.steps
+        self._freeze(warming)
+        self.logger.record("train/critic_warmup", float(warming))
 
 
 class ProgressLines(BaseCallback):

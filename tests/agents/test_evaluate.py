@@ -27,6 +27,7 @@ CONFIG_TEST_TIMES = {
     "ppo.yml": "network",
     "ppo_batched.yml": "network",
     "ppo_uncertainty.yml": "network",
+    "ppo_finetune.yml": "network",
     "ppo_residual.yml": "planner",
     "ppo_handover.yml": "planner",
     "ppo_grip.yml": "simulator",
@@ -158,6 +159,18 @@ def test_results_page_names_date_commit_command_and_network_rows():
     assert "## `fig13`: " in page and "## `lift`: " in page and "## `bundled`" not in page
     assert "| lift | random | network | 2 |" in page
     assert provenance.git_commit(REPO) != "unknown"
+
+
+def test_results_page_links_the_metrics_from_where_it_is_written(tmp_path, monkeypatch):
+    rows = sm.summarize(EPISODES, TEST_TIMES)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: rows)
+    monkeypatch.setattr(ev, "default_policies", lambda *a: [])
+    monkeypatch.setattr(ev, "DOCS", tmp_path / "docs")
+    for page, link in [("docs/results.md", "training.md"), ("docs/a/b.md", "../training.md")]:
+        (tmp_path / page).parent.mkdir(parents=True, exist_ok=True)
+        ev.main(["--models", "--out", str(tmp_path / "eval"), "--results-page",
+                 str(tmp_path / page)])  # fmt: skip
+        assert f"[training.md]({link}#evaluation)" in (tmp_path / page).read_text()
 
 
 def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys):
