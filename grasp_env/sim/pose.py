@@ -73,6 +73,19 @@ def independent_forces(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
     return dense.lstsq(W, g, -1.0)[0], True
 
 
+@njit(cache=CACHE, inline="always")
+def largest_step(dz: np.ndarray) -> float:
+    """The largest ``|dz[k]|`` of a step's three pose entries; NaN if any is NaN (as numpy's
+    ``max``), which no bound rejects."""
+    largest = 0.0
+    for k in range(3):
+        step = abs(dz[k])
+        if step != step:
+            return step
+        largest = max(largest, step)
+    return largest
+
+
 @njit(cache=CACHE)
 def newton(
     points: np.ndarray, body: np.ndarray, n_object: int, n_vertices: int, half: float,
@@ -129,14 +142,7 @@ def newton(
         if not ok:
             du, rank = dense.lstsq(J, rhs, 1e-12, tol / size)
             redundant = rank < m
-        largest = 0.0  # NaN if any entry is (as numpy's max), which no bound rejects
-        for k in range(3):
-            step = abs(du[k])
-            if step != step:
-                largest = step
-                break
-            largest = max(largest, step)
-        if largest > size:
+        if largest_step(du) > size:
             return q, False  # a near-singular step far outside Newton's basin
         for k in range(3):
             q[k] = q[k] + du[k] * scale[k]
@@ -226,14 +232,7 @@ def newton_held(
         dense.lu_in_place(LU, perm)
         if not dense.lu_solve(LU, perm, rhs, dz):
             return q, False
-        largest = 0.0  # NaN if any entry is (as numpy's max), which no bound rejects
-        for k in range(3):
-            step = abs(dz[k])
-            if step != step:
-                largest = step
-                break
-            largest = max(largest, step)
-        if largest > size:
+        if largest_step(dz) > size:
             return q, False
         for k in range(3):
             q[k] = q[k] + dz[k] * scale[k]
