@@ -55,8 +55,12 @@ class CriticWarmup(BaseCallback):
 
     def __init__(self, steps: int):
         super().__init__()
-        if isinstance(steps, bool) or not isinstance(steps, int | float) or not steps >= 0:
-            raise ValueError(f"CriticWarmup steps must be a number >= 0, got {steps!r}")
+        if (
+            isinstance(steps, bool)
+            or not isinstance(steps, int | float)
+            or not 0 <= steps < math.inf
+        ):
+            raise ValueError(f"CriticWarmup steps must be a finite number >= 0, got {steps!r}")
         self.steps = int(steps)
 
     def _actor_parameters(self) -> list:

@@ -56,8 +56,8 @@ def test_critic_warmup_is_named_in_a_config_entry():
     assert isinstance(callback, CriticWarmup) and callback.steps == 5
 
 
-@pytest.mark.parametrize("steps", [-1, float("nan"), "10", True, None])
+@pytest.mark.parametrize("steps", [-1, float("nan"), float("inf"), "10", True, None])
 def test_critic_warmup_refuses_bad_steps(steps):
-    message = f"CriticWarmup steps must be a number >= 0, got {steps!r}"
+    message = f"CriticWarmup steps must be a finite number >= 0, got {steps!r}"
     with pytest.raises(ValueError, match=message):
         CriticWarmup(steps=steps)
