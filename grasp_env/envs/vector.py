@@ -11,7 +11,9 @@ are that single env's after ``reset()`` without a seed.
 
 Autoreset: ``SAME_STEP`` (declared in ``metadata``). A step that ends an episode returns the
 next episode's first observation; the last one is in ``infos["final_obs"]`` and the step's
-info in ``infos["final_info"]`` (each with its ``"_"``-prefixed mask).
+info in ``infos["final_info"]`` (each with its ``"_"``-prefixed mask). Every step's info
+arrays are its own; the masks of the entries every sub-env has (all True) are one read-only
+array, shared.
 """
 
 from __future__ import annotations
@@ -45,7 +47,10 @@ INFO_VALUES = {"grip_force": kernel.I_GRIP_FORCE} | {
     key: kernel.I_TERMS + i for i, key in enumerate(REWARD_KEYS)
 }
 
-_FLAG_COLUMNS, _VALUE_COLUMNS = list(INFO_FLAGS.values()), list(INFO_VALUES.values())
+#: The kernel's info columns of the batched entries, flags first: one gather takes them all.
+_COLUMNS = np.array([*INFO_FLAGS.values(), *INFO_VALUES.values()])
+#: The batched entries' keys with their masks' keys, in ``_COLUMNS``' order.
+_KEYS = [(key, f"_{key}") for key in (*INFO_FLAGS, *INFO_VALUES)]
 
 
 class FrictionlessGraspVectorEnv(VectorEnv):
@@ -114,6 +119,10 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         self._seen = np.zeros((n, size), dtype=np.float32)
         self._info = np.zeros((n, kernel.INFO))
         self._status = np.zeros(n, dtype=np.int64)
+        self._friction = first.friction > 0.0
+        self._uncertain = first._uncertain
+        self._everyone = np.ones(n, dtype=bool)  # the mask of the entries every sub-env has
+        self._everyone.flags.writeable = False  # shared by every info dict: nobody changes it
 
     # ------------------------------------------------------------------ episodes and rows
     def _load(self, i: int) -> None:
@@ -209,8 +218,10 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         if self._models is None:
             raise RuntimeError("call reset() before step()")
         actions = batch_actions(actions, (self.num_envs, *self.single_action_space.shape))
-        friction_jams = self._friction_jams(actions)
-        actions[friction_jams] = 0.0  # those hands stay where they are
+        friction_jams = None
+        if self._friction:
+            friction_jams = self._friction_jams(actions)
+            actions[friction_jams] = 0.0  # those hands stay where they are
         if numba.get_num_threads() != self.threads:  # else idle threads would spin-wait
             numba.set_num_threads(self.threads)
         step_batch(
@@ -218,10 +229,10 @@ class FrictionlessGraspVectorEnv(VectorEnv):
             self._counts, self._an, self._ep, self._obs, self._low, self._high, actions,
             self._seen, self._info, self._status, self.threads,
         )  # fmt: skip
-        if self.envs[0]._uncertain:
+        if self._uncertain:
             self._show_nominal()
         errors = {}
-        for i in np.flatnonzero(self._status != kernel.OK):
+        for i in np.flatnonzero(self._status) if self._status.any() else ():  # OK is 0
             episode = self._episode(i)  # Python takes the step over, as the single env does
             self._info[i] = 0.0
             self._seen[i], self._info[i], error = episode.advance(
@@ -230,7 +241,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
             if error is not None:
                 errors[i] = error
             self._write(i, episode)
-        self._info[friction_jams, kernel.I_JAMMED] = 1.0
+        if friction_jams is not None:
+            self._info[friction_jams, kernel.I_JAMMED] = 1.0
         return self._results(errors, friction_jams)
 
     def _show_nominal(self) -> None:
@@ -244,58 +256,53 @@ class FrictionlessGraspVectorEnv(VectorEnv):
                 )
 
     def _friction_jams(self, actions: np.ndarray) -> np.ndarray:
-        """Which sub-envs' actions ask for a hand motion their friction jams (none without
-        friction), tested as the single env tests it."""
+        """Which sub-envs' actions ask for a hand motion their friction jams, tested as the
+        single env tests it (an env with friction only)."""
         jams = np.zeros(self.num_envs, dtype=bool)
         mu = self.envs[0].friction
-        if mu > 0.0:
-            for i in range(self.num_envs):
-                m = self._counts[i]
-                arrays = (self._q[i], self._h[i], self._keys[i, :m], self._rows[i, :m])
-                jams[i] = self.envs[i]._episode.friction_jams(
-                    arrays, actions[i], self._settings, mu
-                )
+        for i in range(self.num_envs):
+            m = self._counts[i]
+            arrays = (self._q[i], self._h[i], self._keys[i, :m], self._rows[i, :m])
+            jams[i] = self.envs[i]._episode.friction_jams(arrays, actions[i], self._settings, mu)
         return jams
 
-    def _results(self, errors: dict[int, str], friction_jams: np.ndarray):
+    def _results(self, errors: dict[int, str], friction_jams: np.ndarray | None):
         info = self._info
         observations = self._seen.copy()
         rewards = info[:, kernel.I_REWARD].copy()
         terminated = info[:, kernel.I_TERMINATED] != 0.0
         truncated = info[:, kernel.I_TRUNCATED] != 0.0
-        infos = self._step_infos(info, errors, friction_jams)
+        block = info.T[_COLUMNS]  # a row per batched entry
+        flags, values = block[: len(INFO_FLAGS)] != 0.0, block[len(INFO_FLAGS) :]
+        infos = self._step_infos(flags, values, errors, friction_jams)
         ended = terminated | truncated
-        if ended.any():
-            done = np.flatnonzero(ended)
-            final = {"final_obs": observations.copy(), "_final_obs": np.zeros(self.num_envs, bool)}
-            final["_final_obs"][done] = True
-            infos |= final
-            infos["final_info"] = self._step_infos(info, errors, friction_jams)
-            infos["_final_info"] = final["_final_obs"].copy()
-            resets = []
-            for i in done:
+        if ended.any():  # the final infos are the step's, the others the next episodes' first
+            infos["final_obs"], infos["_final_obs"] = observations.copy(), ended.copy()
+            infos["final_info"] = self._step_infos(
+                flags.copy(), values.copy(), errors, friction_jams
+            )
+            infos["_final_info"] = ended.copy()
+            for i in np.flatnonzero(ended):
                 obs, reset_info = self.envs[i].reset()
                 self._load(i)
                 observations[i] = obs
-                resets.append((i, reset_info))
-            for i, reset_info in resets:  # the next episode's first info, as gymnasium's
-                for key in (*INFO_FLAGS, *INFO_VALUES):
-                    infos[key][i] = reset_info[key]
+                flags[:, i] = [reset_info[key] for key in INFO_FLAGS]
+                values[:, i] = [reset_info[key] for key in INFO_VALUES]
         return observations, rewards, terminated, truncated, infos
 
     def _step_infos(
-        self, info: np.ndarray, errors: dict[int, str], friction_jams: np.ndarray
-    ) -> dict[str, np.ndarray]:
-        everyone = np.ones(self.num_envs, dtype=bool)
+        self, flags: np.ndarray, values: np.ndarray, errors: dict[int, str],
+        friction_jams: np.ndarray | None,
+    ) -> dict[str, np.ndarray]:  # fmt: skip
+        """The batched entries of a step's infos: each flag and value a row of ``flags`` and
+        ``values`` (a row per key of ``INFO_FLAGS`` and ``INFO_VALUES``), each mask the
+        read-only mask of every sub-env."""
+        everyone = self._everyone
         out: dict[str, np.ndarray] = {}
-        if self.envs[0].friction > 0.0:
+        if friction_jams is not None:
             out["friction_jam"], out["_friction_jam"] = friction_jams.copy(), everyone
-        flags = (info[:, _FLAG_COLUMNS] != 0.0).T.copy()  # a row per key: one copy for all
-        values = info[:, _VALUE_COLUMNS].T.copy()
-        for j, key in enumerate(INFO_FLAGS):
-            out[key], out[f"_{key}"] = flags[j], everyone
-        for j, key in enumerate(INFO_VALUES):
-            out[key], out[f"_{key}"] = values[j], everyone
+        for (key, mask), row in zip(_KEYS, [*flags, *values], strict=True):
+            out[key], out[mask] = row, everyone
         if errors:
             out["sim_error"] = np.array([errors.get(i) for i in range(self.num_envs)], object)
             out["_sim_error"] = np.isin(np.arange(self.num_envs), list(errors))
@@ -304,10 +311,8 @@ class FrictionlessGraspVectorEnv(VectorEnv):
     def _merged(self, infos: list[dict]) -> dict[str, np.ndarray]:
         """The reset infos of the sub-envs as arrays (the batched entries of a step)."""
         out: dict[str, np.ndarray] = {}
-        everyone = np.ones(self.num_envs, dtype=bool)
-        for key in (*INFO_FLAGS, *INFO_VALUES):
-            out[key] = np.array([info[key] for info in infos])
-            out[f"_{key}"] = everyone
+        for key, mask in _KEYS:
+            out[key], out[mask] = np.array([info[key] for info in infos]), self._everyone
         errors = [info.get("sim_error") for info in infos]
         if any(e is not None for e in errors):
             out["sim_error"] = np.array(errors, dtype=object)

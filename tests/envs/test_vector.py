@@ -198,3 +198,23 @@ def test_a_refused_reset_changes_no_sub_env() -> None:
         np.testing.assert_array_equal(x, y)
     np.testing.assert_array_equal(venv.reset()[0], twin.reset()[0])
     assert venv.call("scene")[2].name == twin.get_attr("scene")[2].name
+
+
+def test_a_steps_infos_are_its_own() -> None:
+    """Each step's info arrays are new: changing them changes no later step's, nor the final
+    infos of an episode's end; the masks, shared by every step, are read-only."""
+    venv = gym.make_vec("FrictionlessGrasp-v0", num_envs=2, time_limit=3)
+    venv.reset(seed=0)
+    a = np.ones((2, 2), dtype=np.float32)
+    _, _, _, _, first = venv.step(a)
+    first["grip_force"][:] = -1.0
+    first["jammed"][:] = True
+    _, _, _, truncated, ended = venv.step(a)
+    _, _, _, truncated, ended = venv.step(a)
+    assert truncated.all() and "final_info" in ended
+    assert not (ended["grip_force"] == -1.0).any() and not ended["jammed"].all()
+    before = ended["final_info"]["form_closure"].copy()
+    ended["form_closure"][:] = ~ended["form_closure"]
+    np.testing.assert_array_equal(ended["final_info"]["form_closure"], before)
+    with pytest.raises(ValueError, match="read-only"):
+        ended["_is_success"][0] = False
