@@ -47,9 +47,10 @@ def contact_xi(
 
 
 @njit(cache=CACHE)
-def lowest_point(model, h: np.ndarray) -> float:
-    """Lowest height of any hand vertex at hand configuration ``h`` (the hand rows of
-    :func:`grasp_env.sim.placement.world_points`, heights only)."""
+def lowest_point(model, h) -> float:
+    """Lowest height of any hand vertex at hand configuration ``h`` (an array or a tuple:
+    :func:`along`), the hand rows of :func:`grasp_env.sim.placement.world_points`, heights
+    only."""
     s = math.sin(h[2])
     low = np.inf
     for b in range(1, 4):
@@ -67,18 +68,28 @@ def lowest_point(model, h: np.ndarray) -> float:
 
 
 @njit(cache=CACHE)
-def vertex_speeds(model, dh: np.ndarray) -> np.ndarray:
+def vertex_speeds(model, dh: np.ndarray) -> tuple[float, float, float]:
     """A bound on how far any vertex of each hand body (palm, finger 1, finger 2) moves
     over the move ``dh``: its frame origin's travel (the joints ride the palm's turn) plus
     its turn times ``reach``."""
     turn = abs(dh[2])
     slide = math.hypot(dh[0], dh[1])
     joints = slide + turn * model.half
-    return np.array([
+    return (
         slide + turn * model.reach[0],
         joints + abs(dh[2] + dh[3]) * model.reach[1],
         joints + abs(dh[2] + dh[4]) * model.reach[2],
-    ])  # fmt: skip
+    )
+
+
+@njit(cache=CACHE, inline="always")
+def along(h0: np.ndarray, dh: np.ndarray, s: float) -> tuple[float, float, float, float, float]:
+    """The hand ``h0 + s dh`` of a move, as a tuple: the same arithmetic as the arrays',
+    without allocating one at every point a loop evaluates."""
+    return (
+        h0[0] + s * dh[0], h0[1] + s * dh[1], h0[2] + s * dh[2], h0[3] + s * dh[3],
+        h0[4] + s * dh[4],
+    )  # fmt: skip
 
 
 @njit(cache=CACHE)
@@ -109,7 +120,7 @@ def support_limit(model, h0: np.ndarray, h1: np.ndarray) -> tuple[float, bool]:
     per_point = max_drop(model, dh) / n  # how far a vertex may descend between points
     k = 0  # the next point to evaluate
     while True:
-        low = lowest_point(model, h0 + (k / n) * dh)
+        low = lowest_point(model, along(h0, dh, k / n))
         if k > 0 and low < -tol:
             break
         # the next `clear` points cannot lie below -tol
@@ -118,9 +129,9 @@ def support_limit(model, h0: np.ndarray, h1: np.ndarray) -> tuple[float, bool]:
         if k > n:
             return 1.0, False
     lo, hi = (k - 1) / n, k / n
-    while hi - lo > 1e-16 and lowest_point(model, h0 + lo * dh) > tol:  # touching, not above
+    while hi - lo > 1e-16 and lowest_point(model, along(h0, dh, lo)) > tol:  # touching, not above
         mid = 0.5 * (lo + hi)
-        if lowest_point(model, h0 + mid * dh) < 0.0:
+        if lowest_point(model, along(h0, dh, mid)) < 0.0:
             hi = mid
         else:
             lo = mid

@@ -344,7 +344,7 @@ def sweep_limit(
     speed = vertex_speeds(model, dh)
     # the object moves too: twice its predicted speed, for the path's curvature
     obj = 2.0 * (np.hypot(v[0], v[1]) + abs(v[2]) * model.size)
-    if (speed.max() + obj) * rest <= model.thinnest:
+    if (max(speed) + obj) * rest <= model.thinnest:
         return rest
     world = place(model, q, h)
     limit = rest

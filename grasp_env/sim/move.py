@@ -22,10 +22,10 @@ from grasp_env.sim.clearance import separation
 from grasp_env.sim.equilibrium import rest_forces
 from grasp_env.sim.events import NO_CHECK
 from grasp_env.sim.fall import fall, held_here, touching
-from grasp_env.sim.hand import support_limit, vertex_speeds
+from grasp_env.sim.hand import along, support_limit, vertex_speeds
 from grasp_env.sim.increments import advance
 from grasp_env.sim.model import unpack
-from grasp_env.sim.placement import contact_rows, place
+from grasp_env.sim.placement import contact_rows, place, world_points_into
 
 
 @njit(cache=CACHE)
@@ -67,8 +67,10 @@ def hand_stays_clear(model, q: np.ndarray, h0: np.ndarray, dh: np.ndarray, known
     travel = vertex_speeds(model, dh)
     margin = 10.0 * model.tol
     s = 0.0
+    world = np.empty_like(model.points)
     for _ in range(CLEAR_ROUNDS):
-        world = place(model, q, h0 + s * dh)
+        h = along(h0, dh, s)
+        world_points_into(model.points, model.body, model.n_vertices, model.half, q, h, world)
         ds = np.inf
         for b in range(1, 4):
             clear = separation(world, model.n_object, model.n_vertices, b) - margin
@@ -115,7 +117,7 @@ def run(
     s_end, blocked = support_limit(model, h0, h1)
     dh = h1 - h0
     if use_known and hand_stays_clear(model, q, h0, s_end * dh, known):
-        out = _out(q, h0 + s_end * dh, s_end, s_end, blocked, False, True)
+        out = _out(q, along(h0, dh, s_end), s_end, s_end, blocked, False, True)
         return out, new_log(), contact_sets.empty(), np.zeros((0, ROW_SIZE))
     if not np.any(dh) or s_end <= 0.0:  # the hand stays where it is
         q, events = settle(model, q, h0, solves)
@@ -131,10 +133,11 @@ def run(
 
 @njit(cache=CACHE)
 def _out(q, h, s, s_end, blocked, jammed, untouched) -> np.ndarray:
-    """The ``OUT_*`` array of a move's end."""
+    """The ``OUT_*`` array of a move's end (the hand ``h`` an array or a tuple)."""
     out = np.empty(OUT_SIZE)
     out[OUT_Q] = q
-    out[OUT_H] = h
+    for i in range(5):
+        out[OUT_H.start + i] = h[i]
     out[OUT_S], out[OUT_S_END] = s, s_end
     out[OUT_BLOCKED], out[OUT_JAMMED], out[OUT_UNTOUCHED] = blocked, jammed, untouched
     return out

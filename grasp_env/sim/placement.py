@@ -39,10 +39,10 @@ def world_points(
 @njit(cache=CACHE, inline="always")
 def world_points_into(
     points: np.ndarray, body: np.ndarray, n_vertices: int, half: float, q: np.ndarray,
-    h: np.ndarray, out: np.ndarray,
+    h, out: np.ndarray,
 ) -> None:  # fmt: skip
     """:func:`world_points` into ``out`` (for a loop that places the bodies at every
-    iteration without allocating)."""
+    iteration without allocating; ``h`` an array or a tuple)."""
     th = h[2]
     c, s = math.cos(th), math.sin(th)
     ox = (q[0], h[0], h[0] - c * half, h[0] + c * half)
