@@ -1,0 +1,81 @@
+"""The batched env as an SB3 ``VecEnv`` (``agents.batched.make_vec_env``): SB3's conventions
+(``dones``, ``terminal_observation``, ``TimeLimit.truncated``, ``is_success``), checked
+against single envs stepped with the same actions, and SB3's wrappers on top."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+from agents.batched import make_vec_env
+from grasp_env.envs.vector import INFO_FLAGS, INFO_VALUES
+
+ENV_ID, N, STEPS, SEED = "FrictionlessGraspLift-v0", 3, 80, 4
+#: A short time limit so that episodes end by truncation; the fingers opening every fourth
+#: step drop lifted objects (a termination).
+KWARGS = {"time_limit": 40, "shape_pool": 8}
+
+
+def _actions(steps: int, n: int, size: int) -> np.ndarray:
+    """Random actions, the fingers closing in three steps of four."""
+    rng = np.random.default_rng(2)
+    out = rng.uniform(-1, 1, (steps, n, size)).astype(np.float32)
+    closing = (np.arange(steps) % 4 != 3)[:, None, None]
+    out[:, :, :2] = np.where(closing, np.abs(out[:, :, :2]), -np.abs(out[:, :, :2]))
+    return out
+
+
+def test_steps_follow_single_envs_with_sb3s_conventions():
+    vec = make_vec_env(ENV_ID, N, seed=SEED, **KWARGS)
+    singles = [gym.make(ENV_ID, **KWARGS) for _ in range(N)]
+    obs = vec.reset()
+    for i, env in enumerate(singles):
+        np.testing.assert_array_equal(obs[i], env.reset(seed=SEED + i)[0])
+    ends = {"terminated": 0, "truncated": 0}
+    for actions in _actions(STEPS, N, vec.action_space.shape[0]):
+        obs, rewards, dones, infos = vec.step(actions)
+        assert rewards.dtype == np.float32 and len(infos) == N
+        for i, env in enumerate(singles):
+            o, r, term, trunc, info = env.step(actions[i])
+            assert rewards[i] == np.float32(r) and dones[i] == (term or trunc)
+            for key in (*INFO_FLAGS, *INFO_VALUES):
+                assert infos[i][key] == info[key] or np.isnan(info[key]), key
+            if term or trunc:
+                ends["terminated" if term else "truncated"] += 1
+                np.testing.assert_array_equal(infos[i]["terminal_observation"], o)
+                assert infos[i]["TimeLimit.truncated"] == (trunc and not term)
+                o, _ = env.reset()
+            else:
+                assert "terminal_observation" not in infos[i]
+            np.testing.assert_array_equal(obs[i], o)
+    assert ends["terminated"] > 0 and ends["truncated"] > 0  # both kinds of end compared
+
+
+def test_vec_monitor_and_vec_normalize_on_top():
+    vec = make_vec_env(ENV_ID, N, seed=SEED, **KWARGS)
+    twin = make_vec_env(ENV_ID, N, seed=SEED, **KWARGS)
+    wrapped = VecNormalize(VecMonitor(vec), norm_obs=True, norm_reward=True)
+    wrapped.reset()
+    twin.reset()
+    returns, lengths, episodes = np.zeros(N), np.zeros(N, dtype=int), []
+    for actions in _actions(STEPS, N, vec.action_space.shape[0]):
+        obs, _, dones, infos = wrapped.step(actions)
+        raw_obs, raw_rewards, raw_dones, _ = twin.step(actions)
+        np.testing.assert_array_equal(dones, raw_dones)
+        np.testing.assert_array_equal(wrapped.get_original_obs(), raw_obs)
+        np.testing.assert_array_equal(wrapped.get_original_reward(), raw_rewards)
+        assert np.all(np.isfinite(obs))
+        returns += raw_rewards
+        lengths += 1
+        for i in np.flatnonzero(dones):
+            episode = infos[i]["episode"]  # VecMonitor's summary of the episode
+            assert episode["l"] == lengths[i]
+            assert episode["r"] == pytest.approx(returns[i], abs=1e-5)
+            episodes.append(episode)
+            returns[i], lengths[i] = 0.0, 0
+    assert episodes
