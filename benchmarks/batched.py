@@ -1,7 +1,8 @@
 """Batched env throughput: env steps/s of ``gymnasium.make_vec(env_id, num_envs=N)`` (the
 batched env, one compiled call per step) against CartPole-v1's ``SyncVectorEnv`` and its own
 numpy-batched vector env, measured in the same run; against N (1 to 256) and threads (1, 2);
-the cost of a reset; where the time of a batched step goes; and what its moves cost, by kind.
+the cost of a reset; where the time of a batched step goes; what its moves cost, by kind;
+and what the parts of a move that touches the object cost.
 
 Random actions (uniform, drawn in bulk from a seeded generator), resets included. Random
 shapes are drawn from a shape pool (``shape_pool``, prepared before timing: its entries are
@@ -25,7 +26,10 @@ from numba import njit
 import grasp_env
 from benchmarks.common import headless, page_main, table, write
 from grasp_env.kernel import step as kernel
-from grasp_env.sim import move
+from grasp_env.sim import contact_sets, motion, move
+from grasp_env.sim.fall import touching
+from grasp_env.sim.increment import newton
+from grasp_env.sim.placement import place
 
 IDS = ("FrictionlessGrasp-v0", "FrictionlessGraspRandomShapes-v0", "FrictionlessGraspLift-v0")
 #: Pool of random shapes for the ids that draw them, prepared before timing.
@@ -164,13 +168,9 @@ REPLAYS = 5
 SOLVE_BANDS = ((0, 0), (1, 3), (4, 10), (11, 50), (51, None))
 
 
-def move_costs(env_id: str, steps: int, reps: int = REPLAYS, pool: int = POOL) -> list[tuple]:
-    """What the moves of ``steps`` random-action steps of a single env cost in compiled code,
-    by kind: the moves that touch nothing (the hand clear of an object resting on the
-    support) and the others by the pose solves they need. Each move is replayed ``reps``
-    times from the state it started in; a replay's time includes one call from Python (about
-    a microsecond over ``reps``). Rows ``(kind, moves, share of moves, share of
-    time, mean seconds)`` for the kinds that occurred."""
+def _record_moves(env_id: str, steps: int, pool: int) -> tuple[list[tuple], object]:
+    """The moves of ``steps`` random-action steps of a single env, each as ``(model, q, h,
+    target, keys, consts)`` from the state it started in, and the env's settings."""
     venv = make(env_id, 1, threads=1, pool=pool)
     env = venv.envs[0]
     rng = np.random.default_rng(0)
@@ -181,15 +181,28 @@ def move_costs(env_id: str, steps: int, reps: int = REPLAYS, pool: int = POOL) -
         ep = env._episode
         action = rng.uniform(space.low, space.high)
         target = kernel.target_of(ep.consts, env._settings, ep.h, action)[0]
-        moves.append((ep.sim.compiled_model, ep.q.copy(), ep.h.copy(), target, ep.keys.copy()))
+        moves.append(
+            (ep.sim.compiled_model, ep.q.copy(), ep.h.copy(), target, ep.keys.copy(), ep.consts)
+        )
         _, _, terminated, truncated, _ = env.step(action)
         if terminated or truncated:
             env.reset()
+    return moves, env._settings
+
+
+def move_costs(env_id: str, steps: int, reps: int = REPLAYS, pool: int = POOL) -> list[tuple]:
+    """What the moves of ``steps`` random-action steps of a single env cost in compiled code,
+    by kind: the moves that touch nothing (the hand clear of an object resting on the
+    support) and the others by the pose solves they need. Each move is replayed ``reps``
+    times from the state it started in; a replay's time includes one call from Python (about
+    a microsecond over ``reps``). Rows ``(kind, moves, share of moves, share of
+    time, mean seconds)`` for the kinds that occurred."""
+    moves, _ = _record_moves(env_id, steps, pool)
     kinds, times = [], []
     for args in moves:
-        _timed_moves(*args, 1)
+        _timed_moves(*args[:5], 1)
         start = time.perf_counter()
-        out, solves = _timed_moves(*args, reps)
+        out, solves = _timed_moves(*args[:5], reps)
         times.append((time.perf_counter() - start) / reps)
         kinds.append(-1 if out[move.OUT_UNTOUCHED] else solves)
     kinds, times = np.array(kinds), np.array(times)
@@ -203,6 +216,81 @@ def move_costs(env_id: str, steps: int, reps: int = REPLAYS, pool: int = POOL) -
         for label, mask in groups
         if mask.any()
     ]
+
+
+@njit
+def _move_end(model, q, h, target, keys):
+    """The ``OUT_*`` array of the compiled move (:func:`grasp_env.sim.move.run`), raising
+    where it raises."""
+    return move.run(model, q, h, target, keys, True, np.zeros(1, dtype=np.int64))[0]
+
+
+#: The parts of a move that touches the object :func:`touched_parts` times.
+PART_NAMES = (
+    "the whole move",
+    "its first plan (contacts and motion LPs)",
+    "contact detection alone",
+    "a pose solve",
+    "the end's contacts and forces",
+    "the analysis of the end state",
+)
+
+
+@njit
+def _part(which, model, q, h, target, keys, consts, settings, q1, h1, reps):
+    """Runs part ``which`` of :data:`PART_NAMES` ``reps`` times (see
+    :func:`touched_parts`); returns a number from its result, so that nothing is skipped."""
+    dh = target - h
+    solves = np.zeros(1, dtype=np.int64)
+    total = 0.0
+    for _ in range(reps):
+        if which == 0:
+            total += move.run(model, q, h, target, keys, True, solves)[0][0]
+        elif which == 1 or which == 2:
+            world = place(model, q, h)
+            found = touching(model, world, contact_sets.empty())
+            total += found.shape[0]
+            if which == 1:
+                total += motion.plan(model, world, q, h, dh, found, True)[2][0]
+        elif which == 3:
+            world = place(model, q, h)
+            found = touching(model, world, contact_sets.empty())
+            outcome, E, v = motion.plan(model, world, q, h, dh, found, True)
+            if outcome == motion.MOVE and E.shape[0] > 0:
+                total += newton(model, q + 0.1 * v, h + 0.1 * dh, E, solves)[0][0]
+        elif which == 4:
+            total += move.at_rest(model, q1, h1)[0].shape[0]
+        else:
+            end_keys, rows = move.at_rest(model, q1, h1)
+            an = np.zeros(kernel.ANALYSIS)
+            kernel.analyse(consts, settings, q1, h1, end_keys, rows, an)
+            total += an[0]
+    return total
+
+
+def touched_parts(env_id: str, steps: int, reps: int = REPLAYS, pool: int = POOL) -> list[float]:
+    """Mean seconds, over the moves of ``steps`` random-action steps of a single env that
+    touch the object, of each part of :data:`PART_NAMES`, each replayed ``reps`` times from
+    the state its move started in (a pose solve: one on the first plan's active set, where
+    that plan moves the object). Moves the compiled core hands to Python are left out."""
+    moves, settings = _record_moves(env_id, steps, pool)
+    sums, counts = np.zeros(len(PART_NAMES)), np.zeros(len(PART_NAMES))
+    for model, q, h, target, keys, consts in moves:
+        try:
+            out = _move_end(model, q, h, target, keys)
+        except Exception:  # a move the compiled core hands to Python
+            continue
+        if out[move.OUT_UNTOUCHED]:
+            continue
+        q1, h1 = out[move.OUT_Q].copy(), out[move.OUT_H].copy()
+        for which in range(len(PART_NAMES)):
+            args = (which, model, q, h, target, keys, consts, settings, q1, h1)
+            _part(*args, 1)
+            start = time.perf_counter()
+            _part(*args, reps)
+            sums[which] += (time.perf_counter() - start) / reps
+            counts[which] += 1
+    return list(sums / np.maximum(counts, 1))
 
 
 def run(
@@ -314,6 +402,22 @@ def run(
                 [env_id, kind, count, f"{share:.1%}", f"{time_share:.1%}", f"{1e6 * mean:.1f}"]
                 for env_id in ids
                 for kind, count, share, time_share, mean in move_costs(env_id, moves, pool=pool)
+            ],
+        ),
+        "",
+        f"## Inside a move that touches the object (the same {moves:,} steps)",
+        "",
+        "Mean us over the moves that touch the object, each part replayed "
+        f"{REPLAYS} times from the state its move started in (the end's parts from the state "
+        "it reached). A move plans again at most increments (its active set and twist) and "
+        "solves the pose at each; the first plan and one pose solve show what one increment "
+        "costs.",
+        "",
+        *table(
+            ["env", *PART_NAMES],
+            [
+                [env_id, *(f"{1e6 * t:.1f}" for t in touched_parts(env_id, moves, pool=pool))]
+                for env_id in ids
             ],
         ),
     ]
