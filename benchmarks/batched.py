@@ -290,12 +290,12 @@ def touched_parts(env_id: str, steps: int, reps: int = REPLAYS, pool: int = POOL
     for model, q, h, target, keys, consts in moves:
         try:
             out = _move_end(model, q, h, target, keys)
-        except Exception:  # a move the compiled core hands to Python
+            if out[move.OUT_UNTOUCHED]:
+                continue
+            q1, h1 = out[move.OUT_Q].copy(), out[move.OUT_H].copy()
+            prepared = _prepare(model, q, h, target, q1, h1)
+        except Exception:  # a move (or its first plan) the compiled core hands to Python
             continue
-        if out[move.OUT_UNTOUCHED]:
-            continue
-        q1, h1 = out[move.OUT_Q].copy(), out[move.OUT_H].copy()
-        prepared = _prepare(model, q, h, target, q1, h1)
         for which in range(len(PART_NAMES)):
             args = (which, model, q, h, target, keys, consts, settings, q1, h1, prepared)
             if np.isnan(_part(*args, 1)):
