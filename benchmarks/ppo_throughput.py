@@ -5,11 +5,14 @@ network, VecNormalize; no evaluation, checkpoints or progress bar; one torch thr
 env and on CartPole-v1: a ``configs/ppo.yml`` entry with each of SB3's vector-env classes
 (SubprocVecEnv, DummyVecEnv) on both sides, and the lifting task's large-batch entry
 (``configs/ppo_batched.yml``) on the batched env (``agents.batched``) against CartPole-v1 in
-a DummyVecEnv of as many envs. Both models are built and warmed up first, then trained in
+a DummyVecEnv of as many envs. The models are built and warmed up first, then trained in
 alternating rounds of a fixed number of env steps (the order rotated each round), so that a
 change in the machine's load touches both sides alike; the page gives env steps/s of
 ``PPO.learn`` per side (median over rounds) and the median and range of the per-round
 ratios.
+
+Beside them, the same PPO on a null env (:class:`NullVecEnv`: our env's spaces, no work)
+measures what PPO itself costs on those spaces: the most any env with them could reach.
 
 Usage: ``python -m benchmarks.ppo_throughput [--quick] [--rounds N] [--entry fig13_fingers]``
 """
@@ -20,6 +23,8 @@ import os
 import statistics
 import time
 from pathlib import Path
+
+import numpy as np
 
 from benchmarks.common import REPO, headless, page_main, table, write
 from grasp_env.cli import positive_int
@@ -34,17 +39,78 @@ ROUNDS = 5
 TARGETS = {"single": 0.8, "batched": 1.0}
 
 
+#: Episode length of the null env: about a lifting episode's with random actions.
+NULL_EPISODE = 129
+
+
+def null_vec_env(n_envs: int, observation_space, action_space, length: int = NULL_EPISODE):
+    """An SB3 ``VecEnv`` with the given spaces that does no work (:class:`NullVecEnv`)."""
+    from stable_baselines3.common.vec_env import VecEnv
+
+    class NullVecEnv(VecEnv):
+        """Zero observations and rewards, every episode ``length`` steps long (staggered
+        across the envs), with SB3's ``terminal_observation`` and ``TimeLimit.truncated`` at
+        its end: PPO on it pays for itself alone."""
+
+        def __init__(self) -> None:
+            super().__init__(n_envs, observation_space, action_space)
+            self.render_mode = None
+            self._t = np.arange(n_envs) % length
+            self._obs = np.zeros((n_envs, *observation_space.shape), observation_space.dtype)
+
+        def reset(self) -> np.ndarray:
+            self._t[:] = np.arange(n_envs) % length
+            return self._obs.copy()
+
+        def step_async(self, actions: np.ndarray) -> None:
+            pass
+
+        def step_wait(self):
+            self._t += 1
+            dones = self._t >= length
+            self._t[dones] = 0
+            infos = [{} for _ in range(n_envs)]
+            for i in np.flatnonzero(dones):
+                infos[i]["terminal_observation"] = self._obs[i].copy()
+                infos[i]["TimeLimit.truncated"] = True
+            return self._obs.copy(), np.zeros(n_envs, np.float32), dones, infos
+
+        def close(self) -> None:
+            pass
+
+        def get_attr(self, attr_name, indices=None) -> list:
+            return [None] * len(self._get_indices(indices))
+
+        def set_attr(self, attr_name, value, indices=None) -> None:
+            pass
+
+        def env_method(self, method_name, *args, indices=None, **kwargs) -> list:
+            return [None] * len(self._get_indices(indices))
+
+        def env_is_wrapped(self, wrapper_class, indices=None) -> list:
+            return [False] * len(self._get_indices(indices))
+
+    return NullVecEnv()
+
+
 def warmed_model(entry: dict, vec_env: str, seed: int = 0):
-    """A PPO model of a config entry on its vector env, after one untimed rollout and update
-    (the envs' first resets, loading compiled code, torch's first passes), so that it is
-    measured in its steady state."""
+    """A PPO model of a config entry on its vector env (``"null"``: :func:`null_vec_env`
+    with the entry's env's spaces, behind a ``VecMonitor`` as the real envs are), after one
+    untimed rollout and update (the envs' first resets, loading compiled code, torch's first
+    passes), so that it is measured in its steady state."""
     from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from agents.train_ppo import make_vec_env, normalize_kwargs, ppo_kwargs
     from benchmarks.batched import prepare_pool
 
-    venv = make_vec_env(entry, int(entry.get("n_envs", 1)), seed, vec_env)
+    n_envs = int(entry.get("n_envs", 1))
+    if vec_env == "null":
+        spaces = make_vec_env(entry, 1, seed, "dummy")
+        venv = VecMonitor(null_vec_env(n_envs, spaces.observation_space, spaces.action_space))
+        spaces.close()
+    else:
+        venv = make_vec_env(entry, n_envs, seed, vec_env)
     if vec_env == "batched":
         prepare_pool(venv.venv.venv)  # VecMonitor, then the SB3 adapter
     norm = normalize_kwargs(entry)
@@ -67,12 +133,18 @@ def steps_per_second(model, steps: int) -> float:
 def compare(
     entry: dict, cartpole: dict, vec_envs: tuple[str, str], steps: tuple[int, int], rounds: int
 ):
-    """Per-round steps/s of our env's and CartPole's PPO, trained in alternating rounds."""
-    models = (warmed_model(entry, vec_envs[0]), warmed_model(cartpole, vec_envs[1]))
-    rates: tuple[list, list] = ([], [])
+    """Per-round steps/s of PPO on our env, on CartPole and on a null env with our env's
+    spaces (as many steps as ours), trained in alternating rounds (the order rotated)."""
+    models = (
+        warmed_model(entry, vec_envs[0]), warmed_model(cartpole, vec_envs[1]),
+        warmed_model(entry, "null"),
+    )  # fmt: skip
+    budget = (steps[0], steps[1], steps[0])
+    rates: tuple[list, list, list] = ([], [], [])
     for r in range(rounds):
-        for side in (0, 1) if r % 2 == 0 else (1, 0):
-            rates[side].append(steps_per_second(models[side], steps[side]))
+        for k in range(3):
+            side = (r + k) % 3
+            rates[side].append(steps_per_second(models[side], budget[side]))
     for model in models:
         model.get_env().close()
     return rates
@@ -108,8 +180,11 @@ def run(quick: bool, out: Path, entry: str = "fig13_fingers", rounds: int | None
             **mine, "env_id": "CartPole-v1", "env_kwargs": {}, "env_wrapper": None,
             "monitor_kwargs": {},
         }  # fmt: skip
-        ours, theirs = compare(mine, cartpole, (ours_vec, theirs_vec), steps, rounds)
+        ours, theirs, alone = compare(mine, cartpole, (ours_vec, theirs_vec), steps, rounds)
         ratios = [a / b for a, b in zip(ours, theirs, strict=True)]
+        ceilings = [a / b for a, b in zip(alone, theirs, strict=True)]
+        # per env step, what our env (with its wrappers) adds to PPO's own time
+        env_us = [1e6 * (1.0 / a - 1.0 / b) for a, b in zip(ours, alone, strict=True)]
         load = os.getloadavg()[0]
         ratio = statistics.median(ratios)
         print(f"{label}: ratio {ratio:.3f} ({min(ratios):.3f}-{max(ratios):.3f}), load {load:.1f}")
@@ -123,21 +198,34 @@ def run(quick: bool, out: Path, entry: str = "fig13_fingers", rounds: int | None
             label, f"{mine['n_envs']} x {mine['n_steps']}, batch {mine['batch_size']}, "
             f"{mine['n_epochs']} epochs", f"{statistics.median(ours):.0f}",
             f"{statistics.median(theirs):.0f} ({theirs_vec})", f"{ratio:.3f}",
-            f"{min(ratios):.3f}-{max(ratios):.3f}", f"{load:.1f}",
+            f"{min(ratios):.3f}-{max(ratios):.3f}", f"{statistics.median(alone):.0f}",
+            f"{statistics.median(ceilings):.3f} ({min(ceilings):.3f}-{max(ceilings):.3f})",
+            f"{statistics.median(env_us):.1f}", f"{load:.1f}",
         ])  # fmt: skip
     header = [
         "set-up", "PPO settings", "our env steps/s", "CartPole-v1 steps/s", "ratio (median)",
-        "ratio range", "load (1 min)",
+        "ratio range", "null env steps/s", "null env / CartPole (range)", "our env us/step",
+        "load (1 min)",
     ]  # fmt: skip
     body = [
         "PPO settings of a config entry on both sides (envs x n_steps, batch, epochs, the "
         "entry's network and VecNormalize); one torch thread. Each model is warmed up by one "
-        f"untimed rollout and update, then both train in {rounds} alternating rounds of 4 "
-        "rollouts on our env and 6 on CartPole-v1 (1 and 2 with `--quick`; order rotated "
-        "each round); steps/s are medians over rounds of the wall time of `PPO.learn`, the "
-        "ratio the median (and range) of the per-round ratios. `agents.train_ppo` trains "
+        f"untimed rollout and update, then the three (with the null env below) train in "
+        f"{rounds} alternating rounds of 4 rollouts on our env and on the null env and 6 on "
+        "CartPole-v1 (1 and 2 with `--quick`; order rotated each round); steps/s are "
+        "medians over rounds of the wall time of `PPO.learn`, the ratio the median (and "
+        "range) of the per-round ratios. `agents.train_ppo` trains "
         "on the batched env where an entry has several envs and no wrapper but "
         "`TrainingInfo`, else with DummyVecEnv (`--vec-env`).",
+        "",
+        "**Null env**: the same PPO, trained in the same rounds, on an env with our env's "
+        "observation and action spaces that does no work (zero observations and rewards, "
+        f"episodes of {NULL_EPISODE} steps, behind a `VecMonitor`): what PPO itself costs "
+        "with those spaces, so `null env / CartPole` is the most any env with them could "
+        "reach against CartPole-v1. `our env us/step`: per env step, the time our env (with "
+        "its wrappers and the SB3 adapter) adds to PPO's own, the median over rounds of "
+        "1/(our steps/s) - 1/(null env steps/s); for a ratio of 1 it would have to be at most "
+        "1/(CartPole steps/s) - 1/(null env steps/s).",
         "",
         *table(header, rows),
         "",

@@ -79,3 +79,26 @@ def test_vec_monitor_and_vec_normalize_on_top():
             episodes.append(episode)
             returns[i], lengths[i] = 0.0, 0
     assert episodes
+
+
+def test_null_env_follows_sb3s_conventions():
+    """The PPO benchmark's null env: SB3's episode ends, with the given spaces."""
+    from benchmarks.ppo_throughput import null_vec_env
+
+    single = gym.make(ENV_ID, shape_pool=2)
+    venv = VecMonitor(null_vec_env(3, single.observation_space, single.action_space, length=4))
+    obs = venv.reset()
+    assert obs.shape == (3, *single.observation_space.shape)
+    ends, lengths = [], [[], [], []]
+    for _ in range(8):
+        obs, rewards, dones, infos = venv.step(np.zeros((3, *single.action_space.shape)))
+        assert not rewards.any() and obs.dtype == single.observation_space.dtype
+        ends.append(dones.copy())
+        for i in np.flatnonzero(dones):
+            assert infos[i]["TimeLimit.truncated"]
+            assert infos[i]["terminal_observation"].shape == single.observation_space.shape
+            lengths[i].append(infos[i]["episode"]["l"])
+    assert lengths == [[4, 4], [3, 4], [2, 4]]
+    # the envs' episodes are staggered: env i ends first after 4 - i steps
+    assert [int(np.flatnonzero(np.array(ends)[:, i])[0]) + 1 for i in range(3)] == [4, 3, 2]
+    assert np.array(ends).sum(axis=0).tolist() == [2, 2, 2]
