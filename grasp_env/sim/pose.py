@@ -140,8 +140,7 @@ def newton(
             if abs(dense.lu_det(LU, sign)) > max(1e-8, 16.0 * tol / size):
                 ok = dense.lu_solve(LU, perm, rhs, du)
         if not ok:
-            du, rank = dense.lstsq(J, rhs, 1e-12, tol / size)
-            redundant = rank < m
+            redundant = dense.lstsq_into(J, rhs, 1e-12, tol / size, du) < m
         if largest_step(du) > size:
             return q, False  # a near-singular step far outside Newton's basin
         for k in range(3):

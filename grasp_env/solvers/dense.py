@@ -167,14 +167,10 @@ def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
 
 
 @njit(cache=CACHE)
-def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Thin singular value decomposition ``A = U diag(s) V^T`` by one-sided Jacobi.
-
-    Returns ``U`` (m, n), ``s`` (n,) in descending order and ``V`` (n, n) (columns are the
-    right singular vectors; note: V, not V^T). Columns of ``U`` for zero singular values
-    are zero. One-sided Jacobi computes small singular values to high relative accuracy and
-    needs no BLAS; for the few columns here it is also fast.
-    """
+def _jacobi(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One-sided Jacobi rotations of ``A``'s columns until they are orthogonal: ``(U, V,
+    sv)`` with ``A V = U``, ``V`` orthogonal and ``sv`` the norms of ``U``'s columns (the
+    singular values, unsorted; ``U``'s columns not yet normalized)."""
     m, n = A.shape
     U = A.copy()
     V = np.eye(n)
@@ -222,12 +218,48 @@ def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         for i in range(m):
             acc += U[i, j] * U[i, j]
         sv[j] = math.sqrt(acc)
-    order = np.argsort(-sv, kind="mergesort")
-    s_out = sv[order]
+    return U, V, sv
+
+
+@njit(cache=CACHE)
+def _descending(sv: np.ndarray) -> np.ndarray:
+    """The order of ``sv`` from largest to smallest, equal values in index order and NaN
+    last: ``np.argsort(-sv, kind="stable")``, by insertion (a handful of entries)."""
+    n = sv.shape[0]
+    order = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        j = k
+        key = -sv[k]
+        while j > 0:
+            prev = -sv[order[j - 1]]
+            # key sorts before prev: smaller, or a number before NaN
+            if key < prev or (prev != prev and key == key):
+                order[j] = order[j - 1]
+                j -= 1
+            else:
+                break
+        order[j] = k
+    return order
+
+
+@njit(cache=CACHE)
+def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Thin singular value decomposition ``A = U diag(s) V^T`` by one-sided Jacobi.
+
+    Returns ``U`` (m, n), ``s`` (n,) in descending order and ``V`` (n, n) (columns are the
+    right singular vectors; note: V, not V^T). Columns of ``U`` for zero singular values
+    are zero. One-sided Jacobi computes small singular values to high relative accuracy and
+    needs no BLAS; for the few columns here it is also fast.
+    """
+    m, n = A.shape
+    U, V, sv = _jacobi(A)
+    order = _descending(sv)
+    s_out = np.empty(n)
     U_out = np.zeros((m, n))
     V_out = np.empty((n, n))
     for k in range(n):
         j = order[k]
+        s_out[k] = sv[j]
         for i in range(n):
             V_out[i, k] = V[i, j]
         if s_out[k] > 0.0:
@@ -237,39 +269,52 @@ def svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @njit(cache=CACHE)
+def lstsq_into(A: np.ndarray, b: np.ndarray, rcond: float, floor: float, x: np.ndarray) -> int:
+    """:func:`lstsq` into ``x`` (n,); returns the rank used. The singular vectors are read
+    from the rotations (:func:`_jacobi`) in :func:`svd`'s order, with its arithmetic, without
+    assembling the decomposition."""
+    m, n = A.shape
+    U, V, sv = _jacobi(A)
+    order = _descending(sv)
+    if rcond < 0.0:
+        rcond = EPS * max(m, n)
+    cut = max(rcond * (sv[order[0]] if n > 0 else 0.0), floor)
+    x[:] = 0.0
+    rank = 0
+    for k in range(n):
+        j = order[k]
+        sk = sv[j]
+        if sk <= cut or sk == 0.0:
+            continue
+        rank += 1
+        coef = 0.0
+        for i in range(m):
+            coef += (U[i, j] / sk) * b[i]
+        coef /= sk
+        for i in range(n):
+            x[i] += coef * V[i, j]
+    return rank
+
+
+@njit(cache=CACHE)
 def lstsq(A: np.ndarray, b: np.ndarray, rcond: float, floor: float = 0.0) -> tuple[np.ndarray, int]:
     """Least-norm least-squares solution of ``A x ~ b`` and the rank used.
 
     Singular values at most ``rcond`` times the largest count as zero (numpy's ``lstsq``
     convention; ``rcond < 0`` means ``EPS * max(m, n)``), and so do those at most ``floor``.
     """
-    m, n = A.shape
-    U, s, V = svd(A)
-    if rcond < 0.0:
-        rcond = EPS * max(m, n)
-    cut = max(rcond * (s[0] if n > 0 else 0.0), floor)
-    x = np.zeros(n)
-    rank = 0
-    for k in range(n):
-        if s[k] <= cut or s[k] == 0.0:
-            continue
-        rank += 1
-        coef = 0.0
-        for i in range(m):
-            coef += U[i, k] * b[i]
-        coef /= s[k]
-        for i in range(n):
-            x[i] += coef * V[i, k]
+    x = np.empty(A.shape[1])
+    rank = lstsq_into(A, b, rcond, floor, x)
     return x, rank
 
 
 @njit(cache=CACHE)
 def rank(A: np.ndarray, tol: float) -> int:
     """Number of singular values of ``A`` above ``tol`` (an absolute threshold)."""
-    s = svd(A)[1]
+    sv = _jacobi(A)[2]
     out = 0
-    for k in range(s.shape[0]):
-        if s[k] > tol:
+    for k in range(sv.shape[0]):
+        if sv[k] > tol:
             out += 1
     return out
 

@@ -53,6 +53,23 @@ def test_lstsq_is_numpys_least_norm_solution() -> None:
         np.testing.assert_allclose(x, ref, rtol=1e-9, atol=1e-9 * abs(ref).max())
 
 
+def test_descending_order_is_numpys_stable_argsort() -> None:
+    """Ties in index order and NaN last, as ``np.argsort(-sv, kind="stable")``."""
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        sv = rng.choice([0.0, 1.0, 2.0, np.nan, 0.5], size=int(rng.integers(0, 7)))
+        np.testing.assert_array_equal(dense._descending(sv), np.argsort(-sv, kind="stable"))
+
+
+def test_lstsq_into_writes_lstsq_into_a_buffer() -> None:
+    for A, b in problems(6, 100):
+        x = np.full(A.shape[1], np.nan)
+        rank = dense.lstsq_into(A, b, 1e-12, 1e-9, x)
+        ref, ref_rank = dense.lstsq(A, b, 1e-12, 1e-9)
+        assert rank == ref_rank
+        np.testing.assert_array_equal(x, ref)
+
+
 def test_rank_matches_numpy() -> None:
     for A, _ in problems(4):
         tol = 1e-10 * abs(A).max()
