@@ -11,7 +11,7 @@ change in the machine's load touches both sides alike; the page gives env steps/
 ``PPO.learn`` per side (median over rounds) and the median and range of the per-round
 ratios.
 
-Beside them, the same PPO on a null env (:class:`NullVecEnv`: our env's spaces, no work)
+Beside them, the same PPO on a null env (:func:`null_vec_env`: our env's spaces, no work)
 measures what PPO itself costs on those spaces: the most any env with them could reach.
 
 Usage: ``python -m benchmarks.ppo_throughput [--quick] [--rounds N] [--entry fig13_fingers]``
