@@ -17,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
+from grasp_env.arguments import integer
 from grasp_env.envs.vector import INFO_FLAGS, INFO_VALUES, FrictionlessGraspVectorEnv
 
 
@@ -97,6 +98,7 @@ def make_vec_env(
     """``n_envs`` episodes of ``env_id`` (``gymnasium.make_vec``'s batched env, with
     ``env_kwargs`` over the registered ones) as an SB3 ``VecEnv``, its sub-env ``i`` seeded
     with ``seed + i`` at the first reset (SB3's ``make_vec_env`` convention)."""
+    n_envs = integer(n_envs, "n_envs", 1)  # named as the caller named it
     venv = gym.make_vec(env_id, num_envs=n_envs, threads=threads, **env_kwargs)
     vec = BatchedVecEnv(venv)
     if seed is not None:

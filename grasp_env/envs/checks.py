@@ -34,15 +34,24 @@ def placement_problem(
 def palm_problem(scene: Scene, palm: np.ndarray) -> str | None:
     """Why a palm pose lies outside the env's palm workspace (None if it is inside)."""
     x, y, th = (float(v) for v in palm)
+    outside = workspace_problem(scene, x, y)
+    if outside:
+        return f"{[x, y, th]} {outside}"
+    if abs(th) > PALM_THETA_MAX:
+        return f"angle {th!r} is outside [-pi/2, pi/2]"
+    return None
+
+
+def workspace_problem(scene: Scene, x: float, y: float) -> str | None:
+    """Why a point ``(x, y)`` lies outside the env's palm workspace (None if it is inside)."""
+    x, y = float(x), float(y)
     w, x0 = scene.palm.width, float(scene.object.start_pose[0])
     if abs(x - x0) > PALM_X_RANGE * w or not 0 <= y <= PALM_Y_MAX * w:
         return (
-            f"{[x, y, th]} is outside the palm workspace |x - x0| <= {PALM_X_RANGE * w:.6g}, "
+            f"is outside the palm workspace |x - x0| <= {PALM_X_RANGE * w:.6g}, "
             f"0 <= y <= {PALM_Y_MAX * w:.6g} (x0 = {x0!r}, the object's x at its scene "
             f"placement: |x - x0| = {abs(x - x0)!r})"
         )
-    if abs(th) > PALM_THETA_MAX:
-        return f"angle {th!r} is outside [-pi/2, pi/2]"
     return None
 
 
@@ -203,12 +212,12 @@ def shape_problem(scene: Scene, contact_tol: float) -> str | None:
 
 
 #: The keys of ``reset(options=...)``.
-OPTION_KEYS = ("scene", "palm", "fingers")
+OPTION_KEYS = ("scene", "palm", "fingers", "object_pose")
 
 
 def reset_options(options: Any, load: Callable[[Any, str], Scene]) -> dict[str, Any]:
     """``reset``'s ``options`` checked: the scene loaded by ``load(spec, name)``, the palm
-    pose and finger angles as arrays."""
+    pose, finger angles and object pose as arrays."""
     if options is None:
         return {}
     if not isinstance(options, dict):
@@ -222,16 +231,25 @@ def reset_options(options: Any, load: Callable[[Any, str], Scene]) -> dict[str, 
             out["scene"] = load(options["scene"], "options['scene']")
         except TypeError as exc:  # a refused reset argument is a ValueError, as for actions
             raise ValueError(str(exc)) from None
-    for key, size in (("palm", 3), ("fingers", 2)):
+    for key, size in (("palm", 3), ("fingers", 2), ("object_pose", 3)):
         if options.get(key) is not None:
             out[key] = real_vector(options[key], f"options[{key!r}]", size)
     return out
 
 
-def option_hand(scene: Scene, opts: dict[str, Any], contact_tol: float) -> np.ndarray:
-    """The start hand of checked reset options ``opts`` (missing parts from the scene),
-    refused outside the palm workspace or the joint limits, or overlapping the object or the
-    support."""
+def option_start(
+    scene: Scene, opts: dict[str, Any], contact_tol: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The object pose and hand a start of checked reset options ``opts`` is settled from
+    (missing parts from the scene): refused with the object's centre or the palm outside the
+    palm workspace, the fingers outside their joint limits, or a body overlapping another or
+    the support."""
+    pose = scene.object.start_pose.copy()
+    if "object_pose" in opts:
+        pose = opts["object_pose"]
+        outside = workspace_problem(scene, pose[0], pose[1])
+        if outside:  # a start the palm could reach, and a fall of bounded length
+            raise ValueError(f"options['object_pose'] {pose.tolist()}: its centre {outside}")
     h = scene.initial_hand.copy()
     if "palm" in opts:
         problem = palm_problem(scene, opts["palm"])
@@ -246,9 +264,10 @@ def option_hand(scene: Scene, opts: dict[str, Any], contact_tol: float) -> np.nd
                 f"options['fingers'] {q.tolist()} is outside the joint limits {lim.tolist()}"
             )
         h[3:] = q
-    problem = placement_problem(scene, scene.object.start_pose, h, contact_tol)
+    problem = placement_problem(scene, pose, h, contact_tol)
     if problem:
         raise ValueError(
-            f"options palm={h[:3].tolist()}, fingers={h[3:].tolist()} refused: {problem}"
+            f"options palm={h[:3].tolist()}, fingers={h[3:].tolist()}, "
+            f"object_pose={pose.tolist()} refused: {problem}"
         )
-    return h
+    return pose, h

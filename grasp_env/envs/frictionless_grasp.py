@@ -28,7 +28,7 @@ from grasp_env.envs.checks import (
     flag,
     numbers,
     one_of,
-    option_hand,
+    option_start,
     placement_problem,
     reset_options,
     shape_problem,
@@ -192,10 +192,13 @@ class FrictionlessGraspEnv(GraspEnvBase):
     palm width: a base scene scaled by ``k`` draws, for the same seed, the same shape scaled
     by ``k``, so that the episode's observations and rewards are those of the unscaled scene.
     ``reset(options=...)`` accepts ``{"scene": ..., "palm": (x, y, theta), "fingers": (q1,
-    q2)}`` (world units): that scene (no randomizer) and that hand configuration (missing
-    parts from the scene). A bad option (unknown key, a value that is not real numbers as for
-    actions, a bad scene, a hand outside the workspace or joint limits, or overlapping the
-    object or the support) or ``seed`` raises ``ValueError`` naming it. A refused reset
+    q2), "object_pose": (x, y, theta)}`` (world units): that scene (no randomizer), that hand
+    configuration and the object at that pose (missing parts from the scene), settled: an
+    object the hand does not hold falls to rest (a start anywhere along a recorded
+    trajectory, as a curriculum draws them). A bad option (unknown key, a value that is not
+    real numbers as for actions, a bad scene, a hand or the object's centre outside the palm
+    workspace, fingers outside their joint limits, bodies overlapping each other or the
+    support) or ``seed`` raises ``ValueError`` naming it. A refused reset
     changes nothing: the episode in progress, if any, continues as if the call had not
     happened (same state, same random generator, same step count).
 
@@ -478,9 +481,9 @@ class FrictionlessGraspEnv(GraspEnvBase):
         if self._uncertain:
             scene = perturbed_scene(rng, nominal.scene, *self._perturbation_args)
             sim, key = Simulator(scene, contact_tol=self.contact_tol), None
-        if "palm" in opts or "fingers" in opts:
-            hand = option_hand(scene, opts, self.contact_tol)
-            return sim, sim.settle(scene.object.start_pose, hand), None, nominal, None
+        if "palm" in opts or "fingers" in opts or "object_pose" in opts:
+            pose, hand = option_start(scene, opts, self.contact_tol)
+            return sim, sim.settle(pose, hand), None, nominal, None
         state, error = self._first_state(sim, key)
         if self.start == "random":
             return sim, self._perturb(sim, state, rng), error, nominal, None

@@ -102,3 +102,9 @@ def test_null_env_follows_sb3s_conventions():
     # the envs' episodes are staggered: env i ends first after 4 - i steps
     assert [int(np.flatnonzero(np.array(ends)[:, i])[0]) + 1 for i in range(3)] == [4, 3, 2]
     assert np.array(ends).sum(axis=0).tolist() == [2, 2, 2]
+
+
+@pytest.mark.parametrize("n_envs", [0, -1, 2.5, True])
+def test_bad_n_envs_is_named_as_the_caller_named_it(n_envs):
+    with pytest.raises(ValueError, match=rf"n_envs must be an integer >= 1, got {n_envs!r}"):
+        make_vec_env("FrictionlessGrasp-v0", n_envs)

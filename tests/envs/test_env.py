@@ -476,6 +476,43 @@ def test_reset_options_start_from_given_configuration():
     assert np.allclose(info["finger_angles"], fingers)
 
 
+def test_object_pose_option_drops_an_unheld_object_to_its_rest():
+    # Released tilted above its scene placement, clear of the hand, the fig13 object falls
+    # back onto the face it rested on: the scene's start pose, its two lowest vertices on
+    # the support (the object's vertices as the scene file gives them).
+    scene = grasp_env.load_scene("fig13")
+    env = FrictionlessGraspEnv()
+    start = scene.object.start_pose
+    _, info = env.reset(seed=0, options={"object_pose": start + np.array([0.0, 0.3, 0.15])})
+    assert [e.kind for e in env.state.events] == ["fall_start", "fall_end"]
+    pose = env.state.object_pose
+    assert np.allclose(pose, start, atol=1e-7)
+    heights = np.sort(geo.transform(pose, scene.object.vertices_B)[:, 1])
+    assert np.allclose(heights[:2], 0.0, atol=1e-7) and heights[2] > 0.05
+    assert np.allclose(info["palm_pose"], scene.palm.pose)
+
+
+def test_object_pose_option_restarts_a_held_state():
+    # A state along the planner's trajectory, the object held off the support, is a start
+    # that stays where it is: the same pose, in form closure.
+    plan = grasp_env.planning.plan_grasp("fig13")
+    held = plan.steps[-1].state
+    assert plan.success and not held.on_support
+    options = {"palm": held.hand[:3], "fingers": held.hand[3:], "object_pose": held.object_pose}
+    env = FrictionlessGraspEnv()
+    _, info = env.reset(seed=0, options=options)
+    assert info["is_success"] and not env.state.on_support
+    assert np.allclose(env.state.object_pose, held.object_pose, atol=1e-9)
+    assert np.allclose(env.state.hand, held.hand)
+    # The batched env gives every sub-env the same start.
+    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")
+    _, infos = envs.reset(seed=0, options=options)
+    assert infos["is_success"].all()
+    for i in range(2):
+        assert np.allclose(envs.unwrapped.sub_env(i).state.object_pose, held.object_pose)
+    envs.close()
+
+
 @pytest.mark.parametrize("scene", ["fig13", "hexagon", "offset_pentagon"])
 def test_preliftoff_start_touches_with_both_fingers(scene):
     env = FrictionlessGraspEnv(scene=scene, start="preliftoff")
