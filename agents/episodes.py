@@ -23,6 +23,24 @@ from grasp_env.envs.shapes import WIDE_SHAPE_RANGES
 #: First seed of the held-out shapes. Training seeds its envs with ``seed + rank`` and its
 #: evaluation env with ``seed + 1000`` (small seeds); these streams never meet them.
 HELDOUT_SEED = 1_000_000
+#: Seeds that training data must not use: the held-out suites' (``agents.evaluate``,
+#: 1,000,000 on) and the learning curves' validation episodes (2,000,000 on).
+RESERVED_SEEDS = range(1_000_000, 3_000_000)
+
+
+def seed_problem(seed: int, count: int) -> str | None:
+    """Why seeds ``seed .. seed + count - 1`` cannot be training seeds, or None."""
+    first, last = seed, seed + count - 1
+    if seed < 0:
+        return f"--seed must be >= 0, got {seed}"
+    if first <= RESERVED_SEEDS[-1] and last >= RESERVED_SEEDS[0]:
+        return (
+            f"--seed {seed}: the training seeds {first}..{last} meet the held-out and "
+            f"validation seeds {RESERVED_SEEDS[0]}..{RESERVED_SEEDS[-1]}"
+        )
+    return None
+
+
 #: Env kwargs of the held-out suite: fig13's hand, a new random shape per seed, the hand
 #: starting where the scene puts it (the "from anywhere" task).
 HELDOUT_KWARGS = {"scene": "fig13", "shape_randomizer": True, "start": "scene"}

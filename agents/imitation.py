@@ -63,6 +63,7 @@ from agents.cloning import (
     save_model,
     set_normalization,
 )
+from agents.episodes import seed_problem
 from agents.expert import (
     ENV_ID,
     STARTS,
@@ -77,23 +78,6 @@ from agents.expert import (
 from agents.imitation_page import training_page
 from agents.provenance import git_commit, utc_now
 from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
-
-#: Seeds that training data must not use: the held-out suites' (``agents.evaluate``,
-#: 1,000,000 on) and the learning curves' validation episodes (2,000,000 on).
-RESERVED_SEEDS = range(1_000_000, 3_000_000)
-
-
-def seed_problem(seed: int, count: int) -> str | None:
-    """Why seeds ``seed .. seed + count - 1`` cannot be training seeds, or None."""
-    first, last = seed, seed + count - 1
-    if seed < 0:
-        return f"--seed must be >= 0, got {seed}"
-    if first <= RESERVED_SEEDS[-1] and last >= RESERVED_SEEDS[0]:
-        return (
-            f"--seed {seed}: the training seeds {first}..{last} meet the held-out and "
-            f"validation seeds {RESERVED_SEEDS[0]}..{RESERVED_SEEDS[-1]}"
-        )
-    return None
 
 
 def _net_arch(text: str) -> list[int]:

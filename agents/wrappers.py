@@ -2,11 +2,14 @@
 terms they and :mod:`agents.callbacks` read from an info.
 
 The evaluation commands and the policies' own envs see the env's own reward and whole info;
-these wrappers shape the reward (:class:`ApproachShaping`) or thin the info (:class:`TrainingInfo`)
-for training only.
+these wrappers shape the reward (:class:`ApproachShaping`), thin the info (:class:`TrainingInfo`)
+or choose the starts (:class:`PlannerStarts`) for training only.
 """
 
 from __future__ import annotations
+
+import math
+import pickle
 
 import gymnasium as gym
 import numpy as np
@@ -51,6 +54,71 @@ class ApproachShaping(gym.Wrapper):
         shaping = self.gamma * phi - self._phi
         self._phi = phi
         return obs, reward + shaping, terminated, truncated, {**info, "reward_approach": shaping}
+
+
+class PlannerStarts(gym.Wrapper):
+    """Starts along the planner's lifts, a reverse curriculum (training only).
+
+    At a reset without options, with probability ``probability``, the episode starts from a
+    state of one of the planner's lifts in ``starts`` (the file
+    ``python -m agents.planner_starts`` writes): its shape, hand and object pose, through the
+    env's reset options. Which state: one drawn uniformly from the last ``ceil(reach * n)`` of
+    the lift's ``n`` states, ``reach`` growing linearly with the env steps this wrapper has
+    seen, from ``first_reach`` to 1 at ``curriculum_steps``: first the states next to form
+    closure, then ever earlier ones, back to the placement the lift starts from. The other
+    resets are the env's own. The draws are the wrapper's own generator's, seeded by
+    ``reset(seed=...)``.
+    """
+
+    def __init__(
+        self, env: gym.Env, starts: str, probability: float = 0.5,
+        curriculum_steps: int = 1_000_000, first_reach: float = 0.1,
+    ) -> None:  # fmt: skip
+        super().__init__(env)
+        if not 0.0 <= probability <= 1.0:
+            raise ValueError(f"probability must be in [0, 1], got {probability!r}")
+        if not 0.0 < first_reach <= 1.0:
+            raise ValueError(f"first_reach must be in (0, 1], got {first_reach!r}")
+        if not curriculum_steps >= 1:
+            raise ValueError(f"curriculum_steps must be >= 1, got {curriculum_steps!r}")
+        with open(starts, "rb") as f:
+            self.lifts = pickle.load(f)
+        if not self.lifts:
+            raise ValueError(f"starts {starts!r} holds no lift")
+        self.probability, self.first_reach = float(probability), float(first_reach)
+        self.curriculum_steps = int(curriculum_steps)
+        self.steps = 0
+        self._rng = np.random.default_rng()
+
+    @property
+    def reach(self) -> float:
+        """The fraction of a lift, from its end, that starts are drawn from now."""
+        grown = self.steps / self.curriculum_steps
+        return min(1.0, self.first_reach + (1.0 - self.first_reach) * grown)
+
+    def start_options(self) -> dict | None:
+        """The options of the next reset: a state of a lift, or None (the env's start)."""
+        if self._rng.random() >= self.probability:
+            return None
+        lift = self.lifts[self._rng.integers(len(self.lifts))]
+        n = len(lift["poses"])
+        i = self._rng.integers(n - math.ceil(self.reach * n), n)
+        hand = lift["hands"][i]
+        return {
+            "scene": lift["scene"], "palm": hand[:3], "fingers": hand[3:],
+            "object_pose": lift["poses"][i],
+        }  # fmt: skip
+
+    def reset(self, *, seed=None, options=None):
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        if options is None:
+            options = self.start_options()
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, action):
+        self.steps += 1
+        return self.env.step(action)
 
 
 class TrainingInfo(gym.Wrapper):

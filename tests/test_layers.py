@@ -50,7 +50,14 @@ LAYERS = {
         ("planner_base", "planner_agents"),
         ("models",),
         ("episodes", "summary", "sweep_page", "expert", "cloning", "imitation_page"),
-        ("train_ppo", "train_rllib", "evaluate", "learning_curves", "imitation"),
+        (
+            "train_ppo",
+            "train_rllib",
+            "evaluate",
+            "learning_curves",
+            "imitation",
+            "planner_starts",
+        ),
     ],
 }
 #: The commands of ``agents`` (its top layer), none of which imports another.
@@ -60,6 +67,7 @@ COMMANDS = {
     "agents.evaluate",
     "agents.learning_curves",
     "agents.imitation",
+    "agents.planner_starts",
 }
 PACKAGES = list(LAYERS)
 

@@ -28,6 +28,7 @@ CONFIG_TEST_TIMES = {
     "ppo_batched.yml": "network",
     "ppo_uncertainty.yml": "network",
     "ppo_finetune.yml": "network",
+    "ppo_planner_starts.yml": "network",
     "ppo_residual.yml": "planner",
     "ppo_handover.yml": "planner",
     "ppo_grip.yml": "simulator",

@@ -1,0 +1,88 @@
+"""Starts along the planner's lifts (agents.planner_starts) and the reverse curriculum that
+draws them (agents.wrappers.PlannerStarts)."""
+
+from __future__ import annotations
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from agents.planner_starts import ENV_ID, collect, main
+from agents.wrappers import PlannerStarts
+
+
+@pytest.fixture(scope="module")
+def starts(tmp_path_factory) -> str:
+    path = tmp_path_factory.mktemp("starts") / "starts.pkl"
+    assert main(["--out", str(path), "--shapes", "3", "--seed", "0"]) == 0
+    return str(path)
+
+
+def test_lift_states_restart_where_the_planner_left_them(starts):
+    with open(starts, "rb") as f:
+        lifts = pickle.load(f)
+    assert lifts and all(len(t["hands"]) == len(t["poses"]) > 0 for t in lifts)
+    env = gym.make(ENV_ID).unwrapped
+    for lift in lifts:
+        # The lift's last state is held off the support in form closure: a reset there
+        # stays there, a grasp from the first step.
+        hand, pose = lift["hands"][-1], lift["poses"][-1]
+        options = {"scene": lift["scene"], "palm": hand[:3], "fingers": hand[3:],
+                   "object_pose": pose}  # fmt: skip
+        _, info = env.reset(seed=0, options=options)
+        assert info["is_success"]
+        assert np.allclose(env.state.object_pose, pose, atol=1e-9)
+        assert np.array_equal(env.state.hand, hand)
+
+
+def test_curriculum_reaches_back_from_form_closure(starts):
+    env = PlannerStarts(gym.make(ENV_ID), starts, probability=1.0, curriculum_steps=100,
+                        first_reach=0.25)  # fmt: skip
+    env.reset(seed=3)
+    for lift in env.lifts:
+        lift["index"] = {tuple(p): i for i, p in enumerate(lift["poses"])}
+    for _ in range(60):  # the last quarter of each lift (rounded up), its end included
+        options = env.start_options()
+        lift = next(t for t in env.lifts if t["scene"] is options["scene"])
+        n = len(lift["poses"])
+        assert lift["index"][tuple(options["object_pose"])] >= n - -(-n // 4)
+    assert env.reach == 0.25
+    env.steps = 50
+    assert env.reach == pytest.approx(0.625)
+    env.steps = 1000
+    assert env.reach == 1.0
+    earliest = []
+    for _ in range(200):
+        options = env.start_options()
+        lift = next(t for t in env.lifts if t["scene"] is options["scene"])
+        earliest.append(lift["index"][tuple(options["object_pose"])])
+    assert min(earliest) == 0  # the placement the lift starts from is drawn too
+
+
+def test_draws_follow_the_seed_and_the_probability(starts):
+    def first_options(seed, probability):
+        env = PlannerStarts(gym.make(ENV_ID), starts, probability=probability)
+        env.reset(seed=seed)
+        return [env.start_options() for _ in range(20)]
+
+    a, b = first_options(7, 0.5), first_options(7, 0.5)
+    assert [o is None for o in a] == [o is None for o in b]
+    assert 0 < sum(o is None for o in a) < 20
+    assert all(o is None for o in first_options(7, 0.0))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [({"probability": 1.5}, r"probability .* 1\.5"), ({"first_reach": 0.0}, r"first_reach .* 0\.0"),
+     ({"curriculum_steps": 0}, r"curriculum_steps .* 0")],
+)  # fmt: skip
+def test_bad_wrapper_arguments_are_named(starts, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        PlannerStarts(gym.make(ENV_ID), starts, **kwargs)
+
+
+def test_reserved_seeds_are_refused():
+    with pytest.raises(ValueError, match=r"999998.*held-out"):
+        collect(5, 999_998)
