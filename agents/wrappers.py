@@ -14,6 +14,8 @@ import pickle
 import gymnasium as gym
 import numpy as np
 
+from grasp_env.errors import ComputationError
+
 #: Prefix of the info keys that hold a reward term (the env's, and shaping terms of wrappers).
 REWARD_PREFIX = "reward_"
 #: Info keys :class:`TrainingInfo` passes on where a step has them.
@@ -66,8 +68,9 @@ class PlannerStarts(gym.Wrapper):
     the lift's ``n`` states, ``reach`` growing linearly with the env steps this wrapper has
     seen, from ``first_reach`` to 1 at ``curriculum_steps``: first the states next to form
     closure, then ever earlier ones, back to the placement the lift starts from. The other
-    resets are the env's own. The draws are the wrapper's own generator's, seeded by
-    ``reset(seed=...)``.
+    resets are the env's own, and so is a reset whose state the simulator cannot settle
+    (counted in ``unsettled``: training goes on). The draws are the wrapper's own
+    generator's, seeded by ``reset(seed=...)``.
     """
 
     def __init__(
@@ -87,7 +90,7 @@ class PlannerStarts(gym.Wrapper):
             raise ValueError(f"starts {starts!r} holds no lift")
         self.probability, self.first_reach = float(probability), float(first_reach)
         self.curriculum_steps = int(curriculum_steps)
-        self.steps = 0
+        self.steps = self.unsettled = 0
         self._rng = np.random.default_rng()
 
     @property
@@ -112,9 +115,15 @@ class PlannerStarts(gym.Wrapper):
     def reset(self, *, seed=None, options=None):
         if seed is not None:
             self._rng = np.random.default_rng(seed)
-        if options is None:
-            options = self.start_options()
-        return self.env.reset(seed=seed, options=options)
+        if options is not None:
+            return self.env.reset(seed=seed, options=options)
+        start = self.start_options()
+        if start is not None:
+            try:
+                return self.env.reset(seed=seed, options=start)
+            except ComputationError:
+                self.unsettled += 1
+        return self.env.reset(seed=seed)
 
     def step(self, action):
         self.steps += 1

@@ -11,6 +11,7 @@ import pytest
 
 from agents.planner_starts import ENV_ID, collect, main
 from agents.wrappers import PlannerStarts
+from grasp_env.errors import SimulationError
 
 
 @pytest.fixture(scope="module")
@@ -86,3 +87,18 @@ def test_bad_wrapper_arguments_are_named(starts, kwargs, match):
 def test_reserved_seeds_are_refused():
     with pytest.raises(ValueError, match=r"999998.*held-out"):
         collect(5, 999_998)
+
+
+def test_a_start_the_simulator_cannot_settle_is_the_envs_own(starts, monkeypatch):
+    env = PlannerStarts(gym.make(ENV_ID), starts, probability=1.0)
+    inner = env.unwrapped
+    reset = inner.reset
+
+    def failing(*, seed=None, options=None):
+        if options is not None:
+            raise SimulationError("no rest found")
+        return reset(seed=seed, options=options)
+
+    monkeypatch.setattr(inner, "reset", failing)
+    _, info = env.reset(seed=0)
+    assert env.unsettled == 1 and not info["is_success"]  # the lifting task's own start
