@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import pickle
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -84,6 +85,11 @@ class PlannerStarts(gym.Wrapper):
             raise ValueError(f"first_reach must be in (0, 1], got {first_reach!r}")
         if not curriculum_steps >= 1:
             raise ValueError(f"curriculum_steps must be >= 1, got {curriculum_steps!r}")
+        if not Path(starts).is_file():
+            raise ValueError(
+                f"starts {str(starts)!r} is not a file: write it first with "
+                f"python -m agents.planner_starts --out {starts}"
+            )
         with open(starts, "rb") as f:
             self.lifts = pickle.load(f)
         if not self.lifts:

@@ -6,6 +6,7 @@ import csv
 import json
 import math
 import os
+import pickle
 import shutil
 import subprocess
 import sys
@@ -25,7 +26,8 @@ from agents import models
 from agents import summary as sm
 from agents import train_ppo as tp
 from agents.planner_agents import PlannerGrip, PlannerResidual
-from agents.wrappers import ApproachShaping, TrainingInfo
+from agents.planner_starts import collect
+from agents.wrappers import ApproachShaping, PlannerStarts, TrainingInfo
 from grasp_env.envs import ENV_ID, ENV_KWARGS, LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
 from grasp_env.envs.frictionless_grasp import REWARD_TERMS
 
@@ -52,8 +54,14 @@ ENTRIES_OF_FILES = [
 @pytest.mark.parametrize(
     ("path", "env_id"), ENTRIES_OF_FILES, ids=[f"{p.name}:{e}" for p, e in ENTRIES_OF_FILES]
 )
-def test_config_entry_builds_its_env(path, env_id):
+def test_config_entry_builds_its_env(path, env_id, tmp_path, monkeypatch):
     entry = cf.get_entry(cf.load_config(path), env_id)
+    for cls, kwargs in cf.wrapper_specs(entry):
+        if cls is PlannerStarts:  # the file a command writes first: a small one, in a tmp dir
+            monkeypatch.chdir(tmp_path)
+            starts = tmp_path / kwargs["starts"]
+            starts.parent.mkdir(parents=True)
+            starts.write_bytes(pickle.dumps(collect(1, 0)))
     cf.check_entry(entry)
     kwargs = cf.ppo_kwargs(entry)
     assert set(kwargs).isdisjoint(cf.ENTRY_KEYS)

@@ -102,3 +102,9 @@ def test_a_start_the_simulator_cannot_settle_is_the_envs_own(starts, monkeypatch
     monkeypatch.setattr(inner, "reset", failing)
     _, info = env.reset(seed=0)
     assert env.unsettled == 1 and not info["is_success"]  # the lifting task's own start
+
+
+def test_a_missing_starts_file_is_named_with_the_command_that_writes_it(tmp_path):
+    missing = str(tmp_path / "starts.pkl")
+    with pytest.raises(ValueError, match=r"starts .*starts\.pkl.* agents\.planner_starts"):
+        PlannerStarts(gym.make(ENV_ID), missing)
