@@ -14,10 +14,12 @@ pre-liftoff placement, ``start="placement"``) and ``perturbed`` (``--perturbed-e
 fig13 episodes from the env's ``"random"`` start, the pre-liftoff placement perturbed). Every
 policy meets the same scenes, starts and seeds. Writes
 ``episodes.csv`` (one row per episode), ``summary.csv``, ``summary.md`` (the table, also
-printed), ``summary.png`` (bar charts) and ``<policy>.gif`` (one fig13 episode per policy)
-into ``--out``; with ``--results-page PATH`` also the results page (``docs/results.md``: the
-tables with the date, the commit and the command), which is written nowhere else, and with
-``--readme PATH`` that README's results block from it (``agents.summary.readme_results``).
+printed), ``paired.csv`` (every policy against the planner on the same seeds, shape by
+shape: ``agents.summary.paired_rows``), ``summary.png`` (bar charts) and ``<policy>.gif``
+(one fig13 episode per policy) into ``--out``; with ``--results-page PATH`` also the
+results page (``docs/results.md``: the tables with the date, the commit and the command),
+which is written nowhere else, and with ``--readme PATH`` that README's results block from
+it (``agents.summary.readme_results``).
 ``--friction`` plays every episode at each listed Coulomb coefficient (the env's
 ``friction``: a step friction can resist jams); the summary has a row per coefficient and
 ``friction.png`` plots success against it, and ``--friction-page PATH`` writes that table
@@ -62,6 +64,7 @@ from agents.summary import (
     README_END,
     bar_chart,
     markdown_table,
+    paired_rows,
     results_page,
     summarize,
     update_readme,
@@ -88,9 +91,10 @@ def evaluate(
     lift_episodes: int = 0,
     frictions: Sequence[float] = (0.0,),
     uncertainties: Sequence[float] = (0.0,),
-) -> list[dict[str, Any]]:
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Run every policy on every suite at every friction and uncertainty level, write every
-    output into ``out``; returns the rows."""
+    output into ``out``; returns the summary's rows and the shape-by-shape comparison's
+    (``paired.csv``, :func:`agents.summary.paired_rows`)."""
     out.mkdir(parents=True, exist_ok=True)
     scenes = scenes if scenes is not None else grasp_env.bundled_scenes()
     episodes_at = [
@@ -123,8 +127,12 @@ def evaluate(
         _one_thread()
         results = _progress(map(run_job, jobs), len(jobs))
     write_csv(out / "episodes.csv", [asdict(e) for e in results])
-    rows = summarize(results, {spec.name: spec.test_time for spec in specs})
+    test_times = {spec.name: spec.test_time for spec in specs}
+    rows = summarize(results, test_times)
     write_csv(out / "summary.csv", rows)
+    paired = paired_rows(results, test_times)
+    if paired:
+        write_csv(out / "paired.csv", paired)
     table = markdown_table(rows)
     (out / "summary.md").write_text(table)
     bar_chart(out / "summary.png", rows)
@@ -135,7 +143,7 @@ def evaluate(
         frames: list[np.ndarray] = []
         run_episode(spec, "bundled", GIF_SCENE, 0, max_steps, frames)
         write_gif(out / f"{spec.name}.gif", frames, FrictionlessGraspEnv.metadata["render_fps"])
-    return rows
+    return rows, paired
 
 
 def _suite_scene(suite: str, seed: int) -> str:
@@ -195,6 +203,7 @@ def main(argv: list[str] | None = None) -> None:
         "same scenes and seeds: every bundled scene (suite 'bundled') and held-out random shapes "
         "(suite 'heldout', seeds training never uses), with the optional suites 'wide', 'lift' "
         "and 'perturbed'. Writes episodes.csv, summary.csv, summary.md (also printed), "
+        "paired.csv (each policy against the planner, shape by shape), "
         "summary.png and one GIF per policy into --out, and with --results-page the results "
         "page; each row's test_time says what its policy calls at test time (network, "
         "planner or simulator); docs/training.md explains the metrics.",
@@ -327,7 +336,7 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(f"--{sweep.key}-page needs two or more --{sweep.key} levels")
         if problem := results_page_problem(page):
             parser.error(f"--{sweep.key}-page {problem}")
-    rows = evaluate(
+    rows, paired = evaluate(
         specs,
         Path(args.out),
         args.episodes,
@@ -342,12 +351,14 @@ def main(argv: list[str] | None = None) -> None:
         args.uncertainty,
     )
     print(markdown_table(rows), end="")
-    print(f"wrote {args.out}/: episodes.csv summary.csv summary.md summary.png *.gif")
+    print(f"wrote {args.out}/: episodes.csv summary.csv summary.md paired.csv summary.png *.gif")
     command = shlex.join(["python", "-m", "agents.evaluate", *argv])
     if args.results_page:
         target = Path(args.results_page)
         training = os.path.relpath(DOCS / "training.md", target.resolve().parent)
-        page = results_page(rows, command, utc_now(), git_commit(), Path(training).as_posix())
+        page = results_page(
+            rows, command, utc_now(), git_commit(), Path(training).as_posix(), paired
+        )
         target.write_text(page)
         print(f"wrote {args.results_page}")
     if args.readme:

@@ -2,20 +2,29 @@
 for :class:`agents.wrappers.PlannerStarts` (a reverse curriculum, training only).
 
     python -m agents.planner_starts --out runs/planner_starts.pkl [--shapes 300] [--seed 0]
+        [--approach]
 
 The shapes are the lifting task's (``FrictionlessGraspLift-v0``'s random shapes, its reset
 with seed ``--seed + k``; seeds that meet the held-out and validation episodes, 1,000,000 to
 2,999,999, are refused). Each is planned from the scene's start
 (:func:`grasp_env.planning.plan_grasp`, its exploratory search included); of a plan that
 reaches form closure the states of its lifting phase are kept, in order, each as the hand
-and the object pose a reset's options take (``palm``, ``fingers``, ``object_pose``). The
-file is a pickle: a list of ``{"seed", "scene", "hands" (k, 5), "poses" (k, 3)}``, one per
-lifted shape.
+and the object pose a reset's options take (``palm``, ``fingers``, ``object_pose``).
+
+With ``--approach`` a plan's states begin at the scene's start: the hand along the planner's
+collision-free approach to its placement (:func:`grasp_env.planning.approach_path`, the path
+the scripted policy drives), sampled at most one action's increment apart, the object at
+rest; then the placement and the lift, for a curriculum that reaches back to where the
+held-out episodes start. A shape the planner lifts but finds no approach to is left out.
+
+The file is a pickle: a list of ``{"seed", "scene", "hands" (k, 5), "poses" (k, 3)}``, one
+per lifted shape.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import pickle
 import sys
@@ -31,37 +40,75 @@ import numpy as np
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.episodes import seed_problem
 from grasp_env.envs.checks import palm_problem, workspace_problem
-from grasp_env.planning import plan_grasp
+from grasp_env.planning import approach_path, plan_grasp
+from grasp_env.simulator import Simulator
 
 #: The env whose shapes the starts are drawn on.
 ENV_ID = "FrictionlessGraspLift-v0"
+#: Largest hand change between two approach samples: palm translation (palm widths), palm
+#: turn and finger angles (rad), the env's default largest action.
+APPROACH_SPACING = (0.02, 0.05, 0.05)
 
 
-def trajectory(scene, seed: int) -> dict | None:
+def approach_hands(sim: Simulator, start, placement: np.ndarray) -> list[np.ndarray] | None:
+    """Hands along the planner's approach from the state ``start`` (the scene's) to
+    ``placement`` (the start included, the placement not), at most :data:`APPROACH_SPACING`
+    apart; None where the planner finds no approach."""
+    path = approach_path(sim, start, placement)
+    if path is None:
+        return None
+    w = sim.scene.palm.width
+    hands, a = [], start.hand
+    for b in path:
+        d = b - a
+        n = max(
+            1,
+            math.ceil(np.abs(d[:2]).max() / (APPROACH_SPACING[0] * w)),
+            math.ceil(abs(d[2]) / APPROACH_SPACING[1]),
+            math.ceil(np.abs(d[3:]).max() / APPROACH_SPACING[2]),
+        )
+        hands += [a + (k / n) * d for k in range(n)]
+        a = b
+    return hands
+
+
+def trajectory(scene, seed: int, approach: bool = False) -> dict | None:
     """The lifting states of the planner's plan for ``scene`` (None where it does not reach
-    form closure): the states a reset can start from (palm and object centre in the palm
-    workspace)."""
+    form closure, or with ``approach`` where it finds no approach): the states a reset can
+    start from (palm and object centre in the palm workspace). With ``approach``, first the
+    hands along the approach (:func:`approach_hands`) with the object at rest, then the
+    placement."""
     plan = plan_grasp(scene)
     if not plan.success:
         return None
-    states = [
-        step.state
-        for step in plan.steps
-        if step.phase == "lifting"
-        and palm_problem(scene, step.state.hand[:3]) is None
-        and workspace_problem(scene, *step.state.object_pose[:2]) is None
+    phases = ("pre-liftoff", "lifting") if approach else ("lifting",)
+    states = [step.state for step in plan.steps if step.phase in phases]
+    hands = [s.hand for s in states]
+    poses = [s.object_pose for s in states]
+    if approach:
+        sim = Simulator(scene)
+        start = sim.reset()
+        before = approach_hands(sim, start, states[0].hand)
+        if before is None:
+            return None
+        hands = before + hands
+        poses = [start.object_pose] * len(before) + poses
+    kept = [
+        i
+        for i, (hand, pose) in enumerate(zip(hands, poses, strict=True))
+        if palm_problem(scene, hand[:3]) is None and workspace_problem(scene, *pose[:2]) is None
     ]
-    if not states:
+    if not kept:
         return None
     return {
         "seed": seed,
         "scene": scene,
-        "hands": np.array([s.hand for s in states]),
-        "poses": np.array([s.object_pose for s in states]),
+        "hands": np.array(hands)[kept],
+        "poses": np.array(poses)[kept],
     }
 
 
-def collect(shapes: int, seed: int) -> list[dict]:
+def collect(shapes: int, seed: int, approach: bool = False) -> list[dict]:
     """The trajectories of the lifting task's shapes on seeds ``seed`` to ``seed + shapes
     - 1`` (:func:`trajectory`); ValueError where a seed is reserved."""
     problem = seed_problem(seed, shapes) if shapes >= 1 else f"--shapes must be >= 1, got {shapes}"
@@ -71,7 +118,7 @@ def collect(shapes: int, seed: int) -> list[dict]:
     out = []
     for s in range(seed, seed + shapes):
         env.reset(seed=s)
-        found = trajectory(env.scene, s)
+        found = trajectory(env.scene, s, approach)
         if found is not None:
             out.append(found)
     env.close()
@@ -85,12 +132,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True, help="the pickle to write")
     parser.add_argument("--shapes", type=int, default=300, help="shapes to plan")
     parser.add_argument("--seed", type=int, default=0, help="the first shape's reset seed")
+    parser.add_argument(
+        "--approach",
+        action="store_true",
+        help="begin each plan's states at the scene's start, along the planner's approach",
+    )
     args = parser.parse_args(argv)
     if args.out.exists():
         parser.error(f"--out {str(args.out)!r} exists; remove it or name another file")
     start = time.perf_counter()
     try:
-        found = collect(args.shapes, args.seed)
+        found = collect(args.shapes, args.seed, args.approach)
     except ValueError as exc:
         parser.error(str(exc))
     args.out.parent.mkdir(parents=True, exist_ok=True)
@@ -98,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
         pickle.dump(found, f)
     states = sum(len(t["poses"]) for t in found)
     print(
-        f"{len(found)} of {args.shapes} shapes lifted, {states} lifting states, "
+        f"{len(found)} of {args.shapes} shapes lifted, {states} states, "
         f"{time.perf_counter() - start:.0f} s: {args.out}"
     )
     return 0

@@ -129,6 +129,92 @@ def _summarize_one(
     return rows
 
 
+#: The policy the shape-by-shape comparison measures the others against.
+REFERENCE = "scripted"
+#: The suites paired shape by shape (one episode per seed and policy).
+PAIRED_SUITES = ("heldout", "wide", "lift", "perturbed")
+#: y*/W differences within this are counted as equal (the same grasp, up to rounding).
+GRIP_EQUAL = 1e-9
+
+
+def paired_rows(
+    episodes: list[Episode], test_times: dict[str, str] | None = None,
+    reference: str = REFERENCE,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """Every policy against ``reference`` on the same seeds, per (friction, uncertainty,
+    suite) of :data:`PAIRED_SUITES`: the shapes only one of them grasps, and on the shapes
+    both grasp (a finite ``y*``) the mean difference of ``y*/W`` (policy minus reference)
+    with its percentile bootstrap 95% interval, and on how many it is lower, equal (within
+    :data:`GRIP_EQUAL`) or higher. Empty where ``reference`` did not play."""
+    test_times = test_times or {}
+    by_key = {(e.friction, e.uncertainty, e.suite, e.policy, e.seed): e for e in episodes}
+    rows = []
+    levels = dict.fromkeys((e.friction, e.uncertainty, e.suite) for e in episodes)
+    policies = list(dict.fromkeys(e.policy for e in episodes if e.policy != reference))
+    for (mu, sigma, suite), policy in itertools.product(levels, policies):
+        if suite not in PAIRED_SUITES:
+            continue
+        pairs = [
+            (e, by_key[(mu, sigma, suite, reference, e.seed)])
+            for e in episodes
+            if (e.friction, e.uncertainty, e.suite, e.policy) == (mu, sigma, suite, policy)
+            and (mu, sigma, suite, reference, e.seed) in by_key
+        ]
+        if not pairs:
+            continue
+        diffs = [
+            a.grip_W - b.grip_W
+            for a, b in pairs
+            if a.success and b.success and math.isfinite(a.grip_W) and math.isfinite(b.grip_W)
+        ]
+        lo, hi = bootstrap_mean(diffs)
+        rows.append(
+            {
+                "suite": suite,
+                "policy": policy,
+                "test_time": test_times.get(policy, ""),
+                "reference": reference,
+                "episodes": len(pairs),
+                "policy_only": sum(a.success and not b.success for a, b in pairs),
+                "reference_only": sum(b.success and not a.success for a, b in pairs),
+                "both": len(diffs),
+                "grip_W_diff_mean": float(np.mean(diffs)) if diffs else math.nan,
+                "grip_W_diff_ci_low": lo,
+                "grip_W_diff_ci_high": hi,
+                "lower": sum(d < -GRIP_EQUAL for d in diffs),
+                "equal": sum(abs(d) <= GRIP_EQUAL for d in diffs),
+                "higher": sum(d > GRIP_EQUAL for d in diffs),
+                "friction": mu,
+                "uncertainty": sigma,
+            }
+        )
+    return rows
+
+
+def paired_table(rows: list[dict[str, Any]]) -> str:
+    """:func:`paired_rows` as a markdown table."""
+    lines = [
+        "| suite | policy | test time | n | grasped by it alone | by the planner alone "
+        "| both grasp | y*/W minus the planner's, mean (95% CI) | lower / equal / higher |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in rows:
+        diff = EMPTY
+        if r["both"]:
+            diff = (
+                f"{r['grip_W_diff_mean']:+.2f} ({r['grip_W_diff_ci_low']:+.2f} to "
+                f"{r['grip_W_diff_ci_high']:+.2f})"
+            )
+        levels = [f"{symbol} {r[key]:g}" for key, symbol in LEVELS if r.get(key)]
+        suite = f"{r['suite']} ({', '.join(levels)})" if levels else r["suite"]
+        lines.append(
+            f"| {suite} | {r['policy']} | {r['test_time']} | {r['episodes']} "
+            f"| {r['policy_only']} | {r['reference_only']} | {r['both']} | {diff} "
+            f"| {r['lower']} / {r['equal']} / {r['higher']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 #: A summary cell with nothing to show (no success to average, no episode that reached closure).
 EMPTY = "n/a"
 #: The swept env parameters a row's suite is labelled with where not 0: column and symbol.
@@ -176,11 +262,13 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
 
 def results_page(
     rows: list[dict[str, Any]], command: str, date: str, commit: str,
-    training: str = "training.md",
+    training: str = "training.md", paired: list[dict[str, Any]] | None = None,
 ) -> str:  # fmt: skip
     """The results page (``docs/results.md``): one table per suite, the date, the commit and
-    the command that produced it, and which rows are network-only. ``training``: the link
-    from the page to ``docs/training.md``, which explains the metrics."""
+    the command that produced it, and which rows are network-only; under a seeded suite's
+    table, its rows of ``paired`` (:func:`paired_rows`: each policy against the planner,
+    shape by shape). ``training``: the link from the page to ``docs/training.md``, which
+    explains the metrics."""
     network = list(dict.fromkeys(r["policy"] for r in rows if r["test_time"] == "network"))
     others = {
         level: list(dict.fromkeys(r["policy"] for r in rows if r["test_time"] == level))
@@ -211,6 +299,16 @@ def results_page(
     for suite in dict.fromkeys(r["suite"] for r in rows):
         table = markdown_table([r for r in rows if r["suite"] == suite])
         lines += ["", f"## `{suite}`: {SUITE_TITLES.get(suite, suite)}", "", table.rstrip("\n")]
+        against = [r for r in paired or () if r["suite"] == suite]
+        if against:
+            lines += [
+                "",
+                "Against the planner, shape by shape (the same seeds): the shapes one of them "
+                "grasps and the other does not, and on the shapes both grasp the difference of "
+                "y\\*/W with a bootstrap 95% interval of its mean:",
+                "",
+                paired_table(against).rstrip("\n"),
+            ]
     return "\n".join(lines) + "\n"
 
 

@@ -29,6 +29,7 @@ CONFIG_TEST_TIMES = {
     "ppo_uncertainty.yml": "network",
     "ppo_finetune.yml": "network",
     "ppo_planner_starts.yml": "network",
+    "ppo_scene_starts.yml": "network",
     "ppo_residual.yml": "planner",
     "ppo_handover.yml": "planner",
     "ppo_grip.yml": "simulator",
@@ -162,9 +163,35 @@ def test_results_page_names_date_commit_command_and_network_rows():
     assert provenance.git_commit(REPO) != "unknown"
 
 
+def test_policies_are_paired_with_the_planner_shape_by_shape():
+    ok = [(0, 1.0, 1.5), (1, 2.0, 2.0), (2, 1.0, None), (3, math.inf, 4.0), (4, None, 1.0),
+          (5, None, None)]  # fmt: skip
+    episodes = []
+    for k, planner, policy in ok:
+        for name, grip in (("scripted", planner), ("ppo_x", policy)):
+            args = (True, grip, 10) if grip is not None else ()
+            episodes.append(_episode("heldout", f"shape_{k}", name, k, *args))
+    episodes.append(_episode("bundled", "fig13", "ppo_x", 0, True, 1.0, 5))  # not paired
+    (row,) = sm.paired_rows(episodes, {"ppo_x": "network"})
+    assert (row["suite"], row["policy"], row["test_time"]) == ("heldout", "ppo_x", "network")
+    assert row["episodes"] == 6
+    assert (row["policy_only"], row["reference_only"]) == (1, 1)  # shapes 4 and 2
+    # both grasp with finite y* on shapes 0 and 1 (shape 3's planner grip is infinite)
+    assert row["both"] == 2 and row["grip_W_diff_mean"] == pytest.approx(0.25)
+    assert 0.0 <= row["grip_W_diff_ci_low"] <= 0.25 <= row["grip_W_diff_ci_high"] <= 0.5
+    assert (row["lower"], row["equal"], row["higher"]) == (0, 1, 1)
+    page = sm.results_page(sm.summarize(episodes), "cmd", "date", "abc")
+    assert "shape by shape" not in page  # only where asked
+    page = sm.results_page(sm.summarize(episodes), "cmd", "date", "abc", paired=[row])
+    heldout = page[page.index("## `heldout`") :]
+    assert "| heldout | ppo_x | network | 6 | 1 | 1 | 2 | +0.25 (" in heldout
+    assert "| 0 / 1 / 1 |" in heldout
+    assert sm.paired_rows(episodes, reference="nobody") == []
+
+
 def test_results_page_links_the_metrics_from_where_it_is_written(tmp_path, monkeypatch):
     rows = sm.summarize(EPISODES, TEST_TIMES)
-    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: rows)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: (rows, []))
     monkeypatch.setattr(ev, "default_policies", lambda *a: [])
     monkeypatch.setattr(ev, "DOCS", tmp_path / "docs")
     for page, link in [("docs/results.md", "training.md"), ("docs/a/b.md", "../training.md")]:
@@ -176,7 +203,7 @@ def test_results_page_links_the_metrics_from_where_it_is_written(tmp_path, monke
 
 def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys):
     rows = sm.summarize(EPISODES, TEST_TIMES)
-    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: rows)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: (rows, []))
     monkeypatch.setattr(ev, "default_policies", lambda *a: [])
     shipped = REPO / "docs" / "results.md"
     before = shipped.read_bytes() if shipped.exists() else None
@@ -195,7 +222,7 @@ def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys)
 
 def test_readme_block_is_written_from_the_page(tmp_path, monkeypatch, capsys):
     rows = sm.summarize(EPISODES, TEST_TIMES)
-    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: rows)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: (rows, []))
     monkeypatch.setattr(ev, "default_policies", lambda *a: [])
     readme = tmp_path / "README.md"
     readme.write_text(f"# Title\n\nbefore\n\n{sm.README_BEGIN}\nold\n{sm.README_END}\n\nafter\n")

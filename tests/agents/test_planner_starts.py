@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.planner_starts import ENV_ID, collect, main
+from agents.planner_starts import APPROACH_SPACING, ENV_ID, collect, main, trajectory
 from agents.wrappers import PlannerStarts
 from grasp_env.errors import SimulationError
 
@@ -36,6 +36,39 @@ def test_lift_states_restart_where_the_planner_left_them(starts):
         assert info["is_success"]
         assert np.allclose(env.state.object_pose, pose, atol=1e-9)
         assert np.array_equal(env.state.hand, hand)
+
+
+def test_approach_states_lead_from_the_scene_start_to_the_lift():
+    env = gym.make(ENV_ID).unwrapped
+    env.reset(seed=1)
+    scene = env.scene
+    lift, whole = trajectory(scene, 1), trajectory(scene, 1, approach=True)
+    k = len(whole["hands"]) - len(lift["hands"])
+    # the lift's states end the whole trajectory unchanged; before them the placement
+    assert k > 1
+    assert np.array_equal(whole["hands"][k:], lift["hands"])
+    assert np.array_equal(whole["poses"][k:], lift["poses"])
+    rest = env.simulator.reset()
+    assert np.array_equal(whole["hands"][0], scene.initial_hand)
+    # consecutive hands at most one action apart (palm widths, rad), up to rounding
+    steps = np.abs(np.diff(whole["hands"][:k], axis=0))
+    w = scene.palm.width
+    assert steps[:, :2].max() <= APPROACH_SPACING[0] * w * (1 + 1e-12)
+    assert steps[:, 2].max() <= APPROACH_SPACING[1] * (1 + 1e-12)
+    assert steps[:, 3:].max() <= APPROACH_SPACING[2] * (1 + 1e-12)
+    # along the approach the hand is clear and the object rests where the scene leaves it:
+    # a reset there keeps both, with no contact but the support's
+    for i in range(0, k - 1, 7):
+        hand = whole["hands"][i]
+        assert np.array_equal(whole["poses"][i], rest.object_pose)
+        options = {"scene": scene, "palm": hand[:3], "fingers": hand[3:],
+                   "object_pose": whole["poses"][i]}  # fmt: skip
+        _, info = env.reset(seed=0, options=options)
+        assert {c.body for c in env.state.contacts} == {"support"}
+        assert np.array_equal(env.state.object_pose, rest.object_pose)
+        assert not info["is_success"]
+    # the placement: the plan's pre-liftoff state, the hand touching the object at rest
+    assert np.allclose(whole["poses"][k - 1], rest.object_pose, atol=1e-9)
 
 
 def test_curriculum_reaches_back_from_form_closure(starts):

@@ -193,7 +193,7 @@ def test_evaluation_table_has_the_checkpoint(run, tmp_path):
     assert spec.name == "rllib_FrictionlessGrasp-v0"
     assert spec.env_kwargs == {"max_episode_steps": 20}  # no reward weights
     random = ep.PolicySpec("random", "random", ep.RANDOM_KWARGS)
-    rows = ev.evaluate([spec, random], tmp_path, episodes=1, scenes=["fig13"], max_steps=10)
+    rows, _ = ev.evaluate([spec, random], tmp_path, episodes=1, scenes=["fig13"], max_steps=10)
     assert {r["policy"] for r in rows} == {spec.name, "random"}
     assert all(r["errors"] == 0 for r in rows)
     assert spec.name in (tmp_path / "summary.md").read_text()
