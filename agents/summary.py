@@ -313,7 +313,7 @@ def results_page(
 
 
 #: The suites of the results page that the README shows, and the markers of its block.
-README_SUITES = ("lift", "perturbed")
+README_SUITES = ("heldout", "lift", "perturbed")
 README_BEGIN = (
     "<!-- Results block: written from the results page by agents.evaluate --readme; "
     "regenerate rather than edit. -->"
