@@ -283,7 +283,7 @@ def main(argv: list[str] | None = None) -> None:
         "--readme",
         metavar="PATH",
         help="with --results-page, also rewrite the results block of that README (README.md "
-        "is the shipped one) from the page: the lift and perturbed tables",
+        "is the shipped one) from the page: the heldout, lift and perturbed tables",
     )
     parser.add_argument(
         "--no-scripted", action="store_true", help="leave the planner out (default: off)"

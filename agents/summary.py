@@ -324,10 +324,11 @@ README_END = "<!-- End of the results block. -->"
 def readme_results(page: str, link: str, suites: tuple[str, ...] = README_SUITES) -> str:
     """The README's results block, taken from the results page's text ``page`` (linked as
     ``link``): where and when it was generated, which rows are network-only, and the tables
-    of ``suites``, one a suite, rows as the page has them."""
+    of ``suites``, one a suite, as the page has them (its comparison with the planner, shape
+    by shape, stays on the page)."""
     lines = page.splitlines()
     generated = next(line for line in lines if line.startswith("Generated on "))
-    header = next(i for i, line in enumerate(lines) if line.startswith("| suite | policy |"))
+    heads = [i for i, line in enumerate(lines) if line.startswith("## ")] + [len(lines)]
     out = [
         README_BEGIN,
         f"From [{link.rsplit('/', 1)[-1]}]({link}), "
@@ -338,9 +339,11 @@ def readme_results(page: str, link: str, suites: tuple[str, ...] = README_SUITES
         *(line for line in lines if line.startswith("Network-only rows:")),
     ]
     for suite in suites:
-        rows = [line for line in lines if line.startswith(f"| {suite} |")]
-        if rows:
-            out += ["", *lines[header : header + 2], *rows]
+        for start, end in itertools.pairwise(heads):
+            if lines[start].startswith(f"## `{suite}`:"):
+                first = next(i for i in range(start, end) if lines[i].startswith("| "))
+                table = itertools.takewhile(lambda line: line.startswith("| "), lines[first:end])
+                out += ["", *table]
     return "\n".join([*out, README_END])
 
 

@@ -222,8 +222,8 @@ def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys)
 
 
 def test_readme_block_is_written_from_the_page(tmp_path, monkeypatch, capsys):
-    rows = sm.summarize(EPISODES, TEST_TIMES)
-    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: (rows, []))
+    rows, paired = sm.summarize(EPISODES, TEST_TIMES), sm.paired_rows(EPISODES, TEST_TIMES)
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: (rows, paired))
     monkeypatch.setattr(ev, "default_policies", lambda *a: [])
     readme = tmp_path / "README.md"
     readme.write_text(f"# Title\n\nbefore\n\n{sm.README_BEGIN}\nold\n{sm.README_END}\n\nafter\n")
@@ -237,9 +237,14 @@ def test_readme_block_is_written_from_the_page(tmp_path, monkeypatch, capsys):
     block = text[text.index(sm.README_BEGIN) : text.index(sm.README_END)]
     assert "From [results.md](docs/results.md), generated on " in block
     assert "Network-only rows: `random`." in block
-    page_rows = [line for line in page.read_text().splitlines() if line.startswith("| lift |")]
-    assert page_rows and all(row in block.splitlines() for row in page_rows)
-    assert "| fig13 |" not in block  # the README shows the lift and perturbed suites only
+    # the lift suite's table under its header, as on the page; its comparison with the
+    # planner, shape by shape, only on the page
+    table = sm.markdown_table([r for r in rows if r["suite"] == "lift"])
+    assert table in page.read_text() and table in block
+    assert block.count(sm.TABLE_HEAD.splitlines()[0]) == 1
+    assert "| lift | random | network | 2 | 0 | 1 | 0 | n/a | 0 / 0 / 0 |" in page.read_text()
+    assert "grasped by it alone" not in block
+    assert "| fig13 |" not in block  # the README shows the seeded suites only
     for bad, message in (
         ([*argv, "--readme", str(tmp_path / "none.md")], "is not a file"),
         ([*argv, "--readme", str(page)], "has no results block"),
