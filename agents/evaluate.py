@@ -315,14 +315,8 @@ def main(argv: list[str] | None = None) -> None:
     for scene in args.scenes or []:
         if scene not in known:
             parser.error(f"--scenes {scene!r} is not a bundled scene; choose from {known}")
-    if problem := out_dir_problem(Path(args.out)):
-        parser.error(f"--out {problem}")
-    if args.results_page and (problem := results_page_problem(Path(args.results_page))):
-        parser.error(f"--results-page {problem}")
     if args.readme and not args.results_page:
         parser.error("--readme needs --results-page (the block is written from that page)")
-    if args.readme and (problem := readme_problem(Path(args.readme))):
-        parser.error(f"--readme {problem}")
     pages = [
         (sweep, levels, Path(page))
         for sweep, levels, page in (
@@ -331,9 +325,17 @@ def main(argv: list[str] | None = None) -> None:
         )
         if page
     ]
-    for sweep, levels, page in pages:
+    for sweep, levels, _ in pages:
         if len(levels) < 2:
             parser.error(f"--{sweep.key}-page needs two or more --{sweep.key} levels")
+    # the arguments agree; now the files (the output folder is made here)
+    if problem := out_dir_problem(Path(args.out)):
+        parser.error(f"--out {problem}")
+    if args.results_page and (problem := results_page_problem(Path(args.results_page))):
+        parser.error(f"--results-page {problem}")
+    if args.readme and (problem := readme_problem(Path(args.readme))):
+        parser.error(f"--readme {problem}")
+    for sweep, _, page in pages:
         if problem := results_page_problem(page):
             parser.error(f"--{sweep.key}-page {problem}")
     rows, paired = evaluate(

@@ -222,6 +222,7 @@ def test_results_page_is_written_only_where_asked(tmp_path, monkeypatch, capsys)
 
 
 def test_readme_block_is_written_from_the_page(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # a refused call makes no default --out folder here
     rows, paired = sm.summarize(EPISODES, TEST_TIMES), sm.paired_rows(EPISODES, TEST_TIMES)
     monkeypatch.setattr(ev, "evaluate", lambda *a, **k: (rows, paired))
     monkeypatch.setattr(ev, "default_policies", lambda *a: [])
