@@ -205,8 +205,7 @@ def paired_table(rows: list[dict[str, Any]]) -> str:
                 f"{r['grip_W_diff_mean']:+.2f} ({r['grip_W_diff_ci_low']:+.2f} to "
                 f"{r['grip_W_diff_ci_high']:+.2f})"
             )
-        levels = [f"{symbol} {r[key]:g}" for key, symbol in LEVELS if r.get(key)]
-        suite = f"{r['suite']} ({', '.join(levels)})" if levels else r["suite"]
+        suite = suite_label(r)
         lines.append(
             f"| {suite} | {r['policy']} | {r['test_time']} | {r['episodes']} "
             f"| {r['policy_only']} | {r['reference_only']} | {r['both']} | {diff} "
@@ -225,6 +224,13 @@ TABLE_HEAD = (
     "| steps to closure (95% CI) | drops | jams | errors |\n"
     "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
 )
+
+
+def suite_label(row: dict[str, Any]) -> str:
+    """A row's suite, with the swept levels it was played at where not 0 (``mu``,
+    ``sigma``)."""
+    levels = [f"{symbol} {row[key]:g}" for key, symbol in LEVELS if row.get(key)]
+    return f"{row['suite']} ({', '.join(levels)})" if levels else row["suite"]
 
 
 def markdown_table(rows: list[dict[str, Any]]) -> str:
@@ -251,8 +257,7 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
                 f"({num(r['steps_to_closure_ci_low'], '.1f')}-"
                 f"{num(r['steps_to_closure_ci_high'], '.1f')})"
             )
-        levels = [f"{symbol} {r[key]:g}" for key, symbol in LEVELS if r.get(key)]
-        suite = f"{r['suite']} ({', '.join(levels)})" if levels else r["suite"]
+        suite = suite_label(r)
         lines.append(
             f"| {suite} | {r['policy']} | {r['test_time']} | {r['episodes']} | {success} "
             f"| {grip} | {closure} | {r['drops']} | {r['jams']} | {r['errors']} |"
