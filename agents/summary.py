@@ -147,18 +147,19 @@ def paired_rows(
     with its percentile bootstrap 95% interval, and on how many it is lower, equal (within
     :data:`GRIP_EQUAL`) or higher. Empty where ``reference`` did not play."""
     test_times = test_times or {}
-    by_key = {(e.friction, e.uncertainty, e.suite, e.policy, e.seed): e for e in episodes}
+    groups: dict[tuple, list[Episode]] = {}
+    for e in episodes:
+        if e.suite in PAIRED_SUITES:
+            groups.setdefault((e.friction, e.uncertainty, e.suite, e.policy), []).append(e)
     rows = []
-    levels = dict.fromkeys((e.friction, e.uncertainty, e.suite) for e in episodes)
-    policies = list(dict.fromkeys(e.policy for e in episodes if e.policy != reference))
+    levels = dict.fromkeys(key[:3] for key in groups)
+    policies = list(dict.fromkeys(key[3] for key in groups if key[3] != reference))
     for (mu, sigma, suite), policy in itertools.product(levels, policies):
-        if suite not in PAIRED_SUITES:
-            continue
+        planner = {e.seed: e for e in groups.get((mu, sigma, suite, reference), ())}
         pairs = [
-            (e, by_key[(mu, sigma, suite, reference, e.seed)])
-            for e in episodes
-            if (e.friction, e.uncertainty, e.suite, e.policy) == (mu, sigma, suite, policy)
-            and (mu, sigma, suite, reference, e.seed) in by_key
+            (e, planner[e.seed])
+            for e in groups.get((mu, sigma, suite, policy), ())
+            if e.seed in planner
         ]
         if not pairs:
             continue
