@@ -17,7 +17,7 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 import gymnasium as gym
 import numpy as np
 
-from agents.models import MODEL_DIR, TEST_TIMES, load_agent
+from agents.models import MODEL_DIR, TEST_TIMES, load_agent, network_action, seed_sampling
 from grasp_env.envs.shapes import WIDE_SHAPE_RANGES
 
 #: First seed of the held-out shapes. Training seeds its envs with ``seed + rank`` and its
@@ -90,7 +90,9 @@ class PolicySpec:
     (``agents.planner_base.planner_wrapper``); ``test_time``: what the policy calls at test
     time (``agents.models.TEST_TIMES``; by default its kind's, ``KIND_TEST_TIMES``, and for
     a "ppo" model its wrapper's declaration, ``PlannerAgent.test_time_of``, or ``"network"``
-    without one: as ``agents.models.entry_test_time`` reads its entry)."""
+    without one: as ``agents.models.entry_test_time`` reads its entry); ``sampled``: a
+    "ppo" model plays actions drawn from its policy's distribution, seeded with the
+    episode's seed, instead of the distribution's mean (``agents.models.network_action``)."""
 
     name: str
     kind: str
@@ -98,6 +100,7 @@ class PolicySpec:
     model_dir: str | None = None
     wrapper: tuple[type[gym.Wrapper], dict] | None = None
     test_time: str = ""
+    sampled: bool = False
 
     def __post_init__(self) -> None:
         if not self.test_time:
@@ -111,12 +114,15 @@ class PolicySpec:
             object.__setattr__(self, "test_time", test_time)
         if self.test_time not in TEST_TIMES:
             raise ValueError(f"policy {self.name!r}: test_time must be one of {TEST_TIMES}")
+        if self.sampled and self.kind != "ppo":
+            raise ValueError(f"policy {self.name!r}: only a 'ppo' model plays sampled actions")
 
 
-def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
+def ppo_spec(model_dir: str | os.PathLike, sampled: bool = False) -> PolicySpec:
     """The spec of a trained model directory: its training env set-up (palm control, start,
     the wrapper that plays it beside the planner) from its saved config, with the env's
-    default reward weights like every other policy."""
+    default reward weights like every other policy; with ``sampled``, the model playing
+    draws from its policy's distribution, named ``ppo_<name>_sampled``."""
     from agents.planner_base import planner_wrapper
 
     _, _, name, entry = load_agent(model_dir)
@@ -125,7 +131,10 @@ def ppo_spec(model_dir: str | os.PathLike) -> PolicySpec:
         for k, v in entry.get("env_kwargs", {}).items()
         if k not in SUITE_KEYS and not k.startswith("reward_")  # one return for all policies
     }
-    return PolicySpec(f"ppo_{name}", "ppo", kwargs, str(model_dir), planner_wrapper(entry))
+    return PolicySpec(
+        f"ppo_{name}{'_sampled' if sampled else ''}", "ppo", kwargs, str(model_dir),
+        planner_wrapper(entry), sampled=sampled,
+    )  # fmt: skip
 
 
 def rllib_spec(path: str | os.PathLike) -> PolicySpec:
@@ -143,9 +152,11 @@ def rllib_spec(path: str | os.PathLike) -> PolicySpec:
 
 
 def default_policies(
-    model_dirs: list[str] | None, rllib_checkpoints: Sequence[str] = ()
-) -> list[PolicySpec]:
-    """Scripted (when ``agents.scripted`` exists), the models, the RLlib checkpoints, random."""
+    model_dirs: list[str] | None, rllib_checkpoints: Sequence[str] = (),
+    sampled_dirs: Sequence[str] = (),
+) -> list[PolicySpec]:  # fmt: skip
+    """Scripted (when ``agents.scripted`` exists), the models, the models of ``sampled_dirs``
+    playing sampled actions, the RLlib checkpoints, random."""
     if model_dirs is None:
         model_dirs = [str(p.parent) for p in sorted(MODEL_DIR.glob("*/model.zip"))]
     specs = []
@@ -156,6 +167,7 @@ def default_policies(
     else:
         specs.append(PolicySpec("scripted", "scripted", SCRIPTED_KWARGS))
     specs += [ppo_spec(d) for d in model_dirs]
+    specs += [ppo_spec(d, sampled=True) for d in sampled_dirs]
     specs += [rllib_spec(c) for c in rllib_checkpoints]
     specs.append(PolicySpec("random", "random", RANDOM_KWARGS))
     return specs
@@ -183,11 +195,11 @@ def make_policy(spec: PolicySpec, env: gym.Env) -> tuple[Callable, Callable]:
         return (lambda obs, info, seed: None), _load_rllib(spec.model_dir).act
     model, norm, _, _ = _load_agent(spec.model_dir)
 
-    def act(obs):
-        x = norm.normalize_obs(obs) if norm is not None else obs
-        return model.predict(x, deterministic=True)[0]
+    def reset(obs, info, seed):
+        if spec.sampled:
+            seed_sampling(seed)
 
-    return (lambda obs, info, seed: None), act
+    return reset, lambda obs: network_action(model, norm, obs, spec.sampled)
 
 
 _load_agent = functools.cache(load_agent)  # once per model and process

@@ -1,7 +1,8 @@
 """Compare the scripted planner, trained PPO agents and a random policy on fixed seeds.
 
-    python -m agents.evaluate [--models DIR ...] [--rllib-checkpoint PATH ...] [--episodes N]
-        [--out DIR] [--workers 2] [--results-page docs/results.md [--readme README.md]]
+    python -m agents.evaluate [--models DIR ...] [--sampled DIR ...]
+        [--rllib-checkpoint PATH ...] [--episodes N] [--out DIR] [--workers 2]
+        [--results-page docs/results.md [--readme README.md]]
         [--friction 0,0.1,0.2,0.3,0.4 [--friction-page docs/friction_results.md]]
         [--uncertainty 0,0.005,0.01,0.02 [--uncertainty-page docs/uncertainty_results.md]]
 
@@ -27,7 +28,10 @@ and plot as a page (:mod:`agents.sweep_page`, the plot into ``images/`` beside i
 ``--uncertainty`` likewise plays every episode at each listed standard deviation of the
 object's vertices (the env's ``uncertainty``, palm widths: the same seeds give every policy
 the same perturbations), with ``uncertainty.png`` and ``--uncertainty-page PATH``. Every row
-says what its policy calls at test time (``test_time``: ``agents.models.TEST_TIMES``). See
+says what its policy calls at test time (``test_time``: ``agents.models.TEST_TIMES``). A
+model plays its policy's mean action; ``--sampled`` plays the models it lists also with
+actions drawn from their policy's distribution (rows ``ppo_<name>_sampled``: still the network
+alone, torch's generator seeded with each episode's seed so that every episode replays). See
 ``docs/training.md`` for the metrics. The suites, policies and episodes: ``agents.episodes``;
 the statistics, tables, chart and results page: ``agents.summary``.
 """
@@ -217,6 +221,15 @@ def main(argv: list[str] | None = None) -> None:
         "no PPO model)",
     )
     parser.add_argument(
+        "--sampled",
+        nargs="+",
+        default=[],
+        metavar="DIR",
+        help="model directories or zoo run folders to play also with actions drawn from their "
+        "policy's distribution (seeded with each episode's seed), as ppo_<name>_sampled "
+        "(default: none; every model plays the distribution's mean)",
+    )
+    parser.add_argument(
         "--rllib-checkpoint",
         nargs="+",
         action="extend",
@@ -306,7 +319,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.workers > MAX_WORKERS:
         parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
     try:
-        specs = default_policies(args.models, args.rllib_checkpoint)
+        specs = default_policies(args.models, args.rllib_checkpoint, args.sampled)
     except ValueError as exc:
         parser.error(str(exc))
     if args.no_scripted:

@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 import grasp_env  # noqa: F401  (registers the env ids)
+from agents.models import load_agent, network_action
 from agents.scripted import ScriptedPolicy
 from grasp_env.envs import LIFT_ENV_ID, RANDOM_SHAPES_ENV_ID
 from grasp_env.errors import ComputationError
@@ -132,16 +133,8 @@ def _samples(env, observations: list, actions: list) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------- DAgger
 @functools.cache
 def _network(model_dir: str):
-    from agents.models import load_agent
-
     model, norm, _, _ = load_agent(model_dir)
     return model, norm
-
-
-def network_action(model, norm, obs: np.ndarray) -> np.ndarray:
-    """The model's deterministic action on one observation (as ``agents.evaluate`` plays)."""
-    x = norm.normalize_obs(obs) if norm is not None else obs
-    return model.predict(x, deterministic=True)[0]
 
 
 def dagger_episode(job: tuple[str, str, int, int, int]) -> dict[str, Any]:

@@ -2,7 +2,7 @@
 seeds.
 
     python -m agents.learning_curves RUN [RUN ...] [--shapes 20] [--every 250000]
-        [--workers 2] [--out runs/learning_curves]
+        [--workers 2] [--sampled] [--out runs/learning_curves]
 
 Each ``RUN`` is a zoo run folder of ``agents.train_ppo`` (``<log folder>/ppo/<env id>_<n>``,
 one per seed, all of one env id). Two curves per run:
@@ -11,7 +11,8 @@ one per seed, all of one env id). Two curves per run:
   success, in bins of ``--bin`` env steps: what the exploring policy achieved;
 * **checkpoints**: each checkpoint the run saved (``rl_model_<steps>_steps.zip`` with its
   ``VecNormalize`` statistics) at a multiple of ``--every`` steps, and the final model, played
-  deterministically on ``--shapes`` validation episodes of the run's env id (seeds
+  deterministically (with ``--sampled``, actions drawn from the policy's distribution,
+  seeded with each episode's seed) on ``--shapes`` validation episodes of the run's env id (seeds
   ``VALIDATION_SEED + k``: neither the training seeds nor the held-out ones of
   ``agents.evaluate``): success rate and mean ``y* / W`` over the successes (those whose
   torque limits admit no grip, ``y* = inf``, left out).
@@ -40,7 +41,7 @@ import numpy as np
 import yaml
 
 import grasp_env  # noqa: F401  (registers the env ids)
-from agents.models import load_checkpoint, read_model_dir
+from agents.models import load_checkpoint, network_action, read_model_dir, seed_sampling
 from agents.planner_base import planner_wrapper
 from grasp_env.cli import HelpFormatter, positive_int
 
@@ -89,7 +90,7 @@ def training_success(run: Path, bin_steps: int) -> list[tuple[int, float]]:
 
 def play(job: tuple) -> tuple[int, int, list[float]]:
     """One checkpoint on the validation episodes: ``(steps, successes, y*/W of each)``."""
-    run, steps, model_file, shapes = job
+    run, steps, model_file, shapes, sampled = job
     model, norm = load_checkpoint(Path(model_file))
     _, entry, _, _ = read_model_dir(run)
     kwargs = {k: v for k, v in entry["env_kwargs"].items() if not k.startswith("reward_")}
@@ -101,9 +102,12 @@ def play(job: tuple) -> tuple[int, int, list[float]]:
     won, grips = 0, []
     for k in range(shapes):
         obs, _ = env.reset(seed=VALIDATION_SEED + k)
+        if sampled:
+            seed_sampling(VALIDATION_SEED + k)
         while True:
-            x = norm.normalize_obs(obs) if norm is not None else obs
-            obs, _, terminated, truncated, info = env.step(model.predict(x, deterministic=True)[0])
+            obs, _, terminated, truncated, info = env.step(
+                network_action(model, norm, obs, sampled)
+            )
             if terminated or truncated:
                 break
         if info["is_success"]:
@@ -149,11 +153,14 @@ def run_labels(runs: list[Path]) -> list[str]:
     return ["/".join(p[head : len(p) - tail]) for p in parts]
 
 
-def curves(runs: list[Path], shapes: int, every: int, workers: int) -> list[dict]:
-    """One row per run and checkpoint: steps, success rate, mean y*/W (NaN without one)."""
+def curves(
+    runs: list[Path], shapes: int, every: int, workers: int, sampled: bool = False
+) -> list[dict]:
+    """One row per run and checkpoint: steps, success rate, mean y*/W (NaN without one);
+    ``sampled`` plays actions drawn from the policy's distribution instead of its mean."""
     labels = dict(zip(map(str, runs), run_labels(runs), strict=True))
     jobs = [
-        (str(run), steps, str(path), shapes)
+        (str(run), steps, str(path), shapes, sampled)
         for run in runs
         for steps, path in checkpoints(run, every)
     ]
@@ -163,7 +170,7 @@ def curves(runs: list[Path], shapes: int, every: int, workers: int) -> list[dict
     else:
         results = [play(job) for job in jobs]
     rows = []
-    for (run, _, _, _), (steps, won, grips) in zip(jobs, results, strict=True):
+    for (run, *_), (steps, won, grips) in zip(jobs, results, strict=True):
         rows.append(
             {
                 "run": labels[run],
@@ -221,7 +228,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m agents.learning_curves",
         description="Success and y* against env steps for PPO runs (one per seed) of one env "
-        "id: the training episodes' success, and each checkpoint played deterministically on "
+        "id: the training episodes' success, and each checkpoint played deterministically (or "
+        "with --sampled, sampled) on "
         "validation shapes. Writes learning_curves.png and learning_curves.csv into --out.",
         formatter_class=HelpFormatter,
     )
@@ -230,6 +238,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--every", type=positive_int, default=250_000, help="checkpoint spacing")
     parser.add_argument("--bin", type=positive_int, default=50_000, help="training-curve bin")
     parser.add_argument("--workers", type=positive_int, default=1, help="processes")
+    parser.add_argument(
+        "--sampled", action="store_true",
+        help="play actions drawn from the policy's distribution, seeded with each validation "
+        "episode's seed (default: off, the distribution's mean)",
+    )  # fmt: skip
     parser.add_argument("--out", default="runs/learning_curves", help="output directory")
     args = parser.parse_args(argv)
     runs = [Path(r) for r in args.runs]
@@ -254,7 +267,7 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"the runs trained on different env ids: {sorted(env_ids)}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = curves(runs, args.shapes, args.every, args.workers)
+    rows = curves(runs, args.shapes, args.every, args.workers, args.sampled)
     with open(out / "learning_curves.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -263,7 +276,11 @@ def main(argv: list[str] | None = None) -> None:
         label: training_success(run, args.bin)
         for run, label in zip(runs, run_labels(runs), strict=True)
     }
-    title = f"{env_ids.pop()}: {len(runs)} seeds, {args.shapes} validation episodes a checkpoint"
+    play_mode = "sampled" if args.sampled else "deterministic"
+    title = (
+        f"{env_ids.pop()}: {len(runs)} seeds, {args.shapes} validation episodes a checkpoint, "
+        f"{play_mode}"
+    )
     plot(out / "learning_curves.png", rows, training, title)
     for r in rows:
         print(f"{r['run']} {r['steps']:>9,d} steps: success {r['success_rate']:.2f}, "

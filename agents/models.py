@@ -133,6 +133,21 @@ def load_checkpoint(model_file: Path):
     return PPO.load(model_file, device="cpu"), load_norm(norm_file)
 
 
+def network_action(model, norm, obs, sampled: bool = False):
+    """A model's action on one observation (normalized with ``norm`` where the run
+    normalized): the mean of its policy's distribution, or with ``sampled`` a draw from it
+    (torch's generator: :func:`seed_sampling` makes an episode's draws reproducible)."""
+    x = norm.normalize_obs(obs) if norm is not None else obs
+    return model.predict(x, deterministic=not sampled)[0]
+
+
+def seed_sampling(seed: int) -> None:
+    """Seed the draws of sampled play (torch's generator, which ``predict`` draws from)."""
+    import torch
+
+    torch.manual_seed(seed)
+
+
 def load_norm(path: Path):
     """Saved ``VecNormalize`` statistics for inference (frozen, rewards left alone), or None
     where the run did not normalize. (``VecNormalize.load`` needs a vector env; the agents

@@ -437,6 +437,67 @@ def test_evaluation_writes_all_outputs(trained, tmp_path, capsys):
     assert len(rows) == 1 + 2 * (1 + 2)  # header + 2 policies x (1 scene + 2 shapes)
 
 
+def test_sampled_play_replays_each_episode_and_is_its_own_row(trained, tmp_path, capsys):
+    """A sampled model is a network-only row of its own; the same episode seed replays the
+    same episode, whatever ran before it in the process; a path that is no model is refused
+    by name."""
+    spec = ep.ppo_spec(trained, sampled=True)
+    assert (spec.name, spec.test_time, spec.sampled) == ("ppo_tiny_sampled", "network", True)
+    first = ep.run_episode(spec, "heldout", "random", ep.HELDOUT_SEED, 6)
+    ep.run_episode(spec, "heldout", "random", ep.HELDOUT_SEED + 1, 6)
+    assert ep.run_episode(spec, "heldout", "random", ep.HELDOUT_SEED, 6) == first
+    with pytest.raises(ValueError, match="only a 'ppo' model plays sampled"):
+        ep.PolicySpec("random", "random", sampled=True)
+    out = tmp_path / "eval"
+    argv = ["--models", "--no-scripted", "--scenes", "fig13", "--max-steps", "2"]
+    ev.main([*argv, "--episodes", "1", "--sampled", str(trained), "--out", str(out)])
+    printed = capsys.readouterr().out
+    assert "| heldout | ppo_tiny_sampled | network | 1 |" in printed
+    with pytest.raises(SystemExit):
+        ev.main([*argv, "--sampled", str(tmp_path / "nothing"), "--out", str(out)])
+    assert "nothing" in capsys.readouterr().err
+
+
+def test_sampled_actions_follow_the_policys_distribution():
+    """Sampled play draws from the policy's Gaussian, clipped to the action bounds: each
+    coordinate's draws against that distribution (Kolmogorov-Smirnov, computed apart from
+    SB3 from the network's mean and log standard deviation), and the deterministic action is
+    the mean."""
+    import torch
+    from scipy import stats
+
+    from agents.models import network_action, seed_sampling
+
+    model, norm, _, entry = models.load_agent(models.MODEL_DIR / "scene_starts")
+    env = gym.make(entry["env_id"], **entry["env_kwargs"])
+    obs, _ = env.reset(seed=5)
+    x = torch.as_tensor(norm.normalize_obs(obs)[None], dtype=torch.float32)
+    with torch.no_grad():
+        features = model.policy.extract_features(x, model.policy.pi_features_extractor)
+        mean = model.policy.action_net(model.policy.mlp_extractor.forward_actor(features))[0]
+    mean, std = mean.numpy(), torch.exp(model.policy.log_std).detach().numpy()
+    low, high = env.action_space.low, env.action_space.high
+    np.testing.assert_allclose(
+        network_action(model, norm, obs), np.clip(mean, low, high), rtol=1e-6, atol=1e-6
+    )
+    seed_sampling(0)
+    draws = np.array([network_action(model, norm, obs, sampled=True) for _ in range(2000)])
+    tested = 0
+    for j in range(len(mean)):
+        a, b = (low[j] - mean[j]) / std[j], (high[j] - mean[j]) / std[j]
+        for share, expected in (
+            (np.mean(draws[:, j] <= low[j]), stats.norm.cdf(a)),  # clipped to each bound
+            (np.mean(draws[:, j] >= high[j]), stats.norm.sf(b)),
+        ):
+            assert abs(share - expected) < 4 * np.sqrt(expected / len(draws)) + 1e-3, j
+        inside = draws[:, j][(draws[:, j] > low[j]) & (draws[:, j] < high[j])]
+        if len(inside) >= 200:
+            truncated = stats.truncnorm(a, b, loc=mean[j], scale=std[j])
+            assert stats.kstest(inside, truncated.cdf).pvalue > 1e-3, j
+            tested += 1
+    assert tested >= 2  # the start has coordinates inside the bounds (the fingers' are not)
+
+
 @pytest.mark.parametrize(
     ("where", "message"),
     [
@@ -629,6 +690,12 @@ def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     assert [int(r["steps"]) for r in rows] == [128, 256]
     assert all(float(r["success_rate"]) in (0.0, 0.5, 1.0) for r in rows)
     assert (tmp_path / "learning_curves.png").stat().st_size > 0
+    for again in ("sampled", "sampled_again"):  # sampled play replays from the seeds
+        lc.main([str(run), "--shapes", "2", "--every", "256", "--sampled", "--out",
+                 str(tmp_path / again)])  # fmt: skip
+    assert (tmp_path / "sampled" / "learning_curves.csv").read_text() == (
+        tmp_path / "sampled_again" / "learning_curves.csv"
+    ).read_text()
     training = lc.training_success(run, 100)
     assert [edge for edge, _ in training] == [100, 200][: len(training)]
     with pytest.raises(SystemExit):

@@ -11,7 +11,7 @@ import pytest
 from agents import cloning, imitation
 from agents import expert as ex
 from agents.episodes import ppo_spec
-from agents.models import load_agent
+from agents.models import load_agent, network_action
 from agents.scripted import ScriptedPolicy
 
 #: A training seed whose shape the planner lifts from its placement.
@@ -74,9 +74,9 @@ def test_saved_model_acts_from_the_observation_alone(expert, tmp_path):
         assert not type(value).__module__.startswith(("agents", "grasp_env"))
     env = ex.make_env("scene")
     obs, _ = env.reset(seed=3)
-    action = ex.network_action(loaded, loaded_norm, obs)
+    action = network_action(loaded, loaded_norm, obs)
     assert env.action_space.contains(action.astype(np.float32))
-    np.testing.assert_array_equal(action, ex.network_action(loaded, loaded_norm, obs))
+    np.testing.assert_array_equal(action, network_action(loaded, loaded_norm, obs))
 
 
 @pytest.mark.parametrize(
