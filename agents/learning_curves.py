@@ -2,7 +2,7 @@
 seeds.
 
     python -m agents.learning_curves RUN [RUN ...] [--shapes 20] [--every 250000]
-        [--workers 2] [--sampled] [--out runs/learning_curves]
+        [--workers 2] [--sampled] [--out runs/learning_curves] [--best-out DIR]
 
 Each ``RUN`` is a zoo run folder of ``agents.train_ppo`` (``<log folder>/ppo/<env id>_<n>``,
 one per seed, all of one env id). Two curves per run:
@@ -19,7 +19,9 @@ one per seed, all of one env id). Two curves per run:
 
 Writes ``learning_curves.png`` (two panels: success, ``y*/W``; the mean over seeds with the
 band from the lowest to the highest seed) and ``learning_curves.csv`` (one row per run and
-checkpoint) into ``--out``. See ``docs/training.md``.
+checkpoint) into ``--out``; with ``--best-out DIR`` also the model directory of the best
+model played (:func:`best`: checkpoint selection on the validation shapes). See
+``docs/training.md``.
 """
 
 from __future__ import annotations
@@ -41,9 +43,15 @@ import numpy as np
 import yaml
 
 import grasp_env  # noqa: F401  (registers the env ids)
-from agents.models import load_checkpoint, network_action, read_model_dir, seed_sampling
+from agents.models import (
+    export_checkpoint,
+    load_checkpoint,
+    network_action,
+    read_model_dir,
+    seed_sampling,
+)
 from agents.planner_base import planner_wrapper
-from grasp_env.cli import HelpFormatter, positive_int
+from grasp_env.cli import HelpFormatter, out_dir_problem, positive_int
 
 #: First seed of the validation episodes: apart from training (small seeds) and from the
 #: held-out suites of ``agents.evaluate`` (1,000,000 on).
@@ -170,16 +178,27 @@ def curves(
     else:
         results = [play(job) for job in jobs]
     rows = []
-    for (run, *_), (steps, won, grips) in zip(jobs, results, strict=True):
+    for (run, _, path, *_), (steps, won, grips) in zip(jobs, results, strict=True):
         rows.append(
             {
                 "run": labels[run],
                 "steps": steps,
                 "success_rate": won / shapes,
                 "grip_W_mean": float(np.mean(grips)) if grips else math.nan,
+                "model": path,
             }
         )
     return rows
+
+
+def best(rows: list[dict]) -> dict:
+    """The row of the model to keep: the highest validation success, then the lowest mean
+    ``y*/W`` (none counts as the highest), then the fewest steps."""
+
+    def grip(row: dict) -> float:
+        return math.inf if math.isnan(row["grip_W_mean"]) else row["grip_W_mean"]
+
+    return min(rows, key=lambda r: (-r["success_rate"], grip(r), r["steps"]))
 
 
 def plot(path: Path, rows: list[dict], training: dict[str, list], title: str) -> None:
@@ -244,6 +263,12 @@ def main(argv: list[str] | None = None) -> None:
         "episode's seed (default: off, the distribution's mean)",
     )  # fmt: skip
     parser.add_argument("--out", default="runs/learning_curves", help="output directory")
+    parser.add_argument(
+        "--best-out", metavar="DIR",
+        help="also write the model directory of the best model played (the highest "
+        "validation success, then the lowest y*/W, then the fewest steps) to DIR; the runs "
+        "must have finished (default: none)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     runs = [Path(r) for r in args.runs]
     if len({run.resolve() for run in runs}) < len(runs):
@@ -265,6 +290,12 @@ def main(argv: list[str] | None = None) -> None:
     env_ids = {read_model_dir(run)[1]["env_id"] for run in runs}
     if len(env_ids) != 1:
         parser.error(f"the runs trained on different env ids: {sorted(env_ids)}")
+    if args.best_out:
+        for run in runs:
+            if not (run / "train_stats.json").is_file():
+                parser.error(f"--best-out: {str(run)!r} has not finished (no train_stats.json)")
+        if problem := out_dir_problem(Path(args.best_out)):
+            parser.error(f"--best-out {problem}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = curves(runs, args.shapes, args.every, args.workers, args.sampled)
@@ -286,6 +317,10 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{r['run']} {r['steps']:>9,d} steps: success {r['success_rate']:.2f}, "
               f"y*/W {r['grip_W_mean']:.2f}")  # fmt: skip
     print(f"wrote {out}/learning_curves.png and learning_curves.csv")
+    if args.best_out:
+        chosen = best(rows)
+        export_checkpoint(chosen["model"], args.best_out)
+        print(f"wrote {args.best_out}: {chosen['run']} at {chosen['steps']:,d} steps")
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ id>/config.yml``, ``<env id>/args.yml``, checkpoints).
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import shutil
@@ -124,13 +125,17 @@ def load_checkpoint(model_file: Path):
     ``<env id>/vecnormalize.pkl``."""
     from stable_baselines3 import PPO
 
+    return PPO.load(model_file, device="cpu"), load_norm(norm_file_of(model_file))
+
+
+def norm_file_of(model_file: Path) -> Path:
+    """The ``VecNormalize`` statistics saved with a model file of a zoo run folder."""
     name = model_file.name
     if name.startswith("rl_model_"):
-        norm_file = model_file.with_name(name.replace("rl_model_", "rl_model_vecnormalize_"))
-        norm_file = norm_file.with_suffix(".pkl")
-    else:
-        norm_file = model_file.with_suffix("") / "vecnormalize.pkl"
-    return PPO.load(model_file, device="cpu"), load_norm(norm_file)
+        return model_file.with_name(
+            name.replace("rl_model_", "rl_model_vecnormalize_")
+        ).with_suffix(".pkl")
+    return model_file.with_suffix("") / "vecnormalize.pkl"
 
 
 def network_action(model, norm, obs, sampled: bool = False):
@@ -164,15 +169,38 @@ def export_model(run: str | os.PathLike, out: str | os.PathLike, config: dict) -
     """Write the model directory ``out`` from a zoo run folder: ``model.zip``,
     ``vecnormalize.pkl`` (if the run normalizes), ``config.yml`` (``config``: ``{env id:
     entry}``) and ``train_stats.json``."""
-    run, out = Path(run), Path(out)
+    run = Path(run)
     ((env_id, _),) = config.items()
+    stats = json.loads((run / "train_stats.json").read_text())
+    return _write_model_dir(run / f"{env_id}.zip", Path(out), config, stats)
+
+
+def export_checkpoint(model_file: str | os.PathLike, out: str | os.PathLike) -> Path:
+    """Write the model directory ``out`` from a model file of a finished zoo run folder, a
+    checkpoint (``<run>/rl_model_<n>_steps.zip``) or the final model (``<run>/<env
+    id>.zip``): the file and its statistics, the run's entry with ``n_timesteps`` the file's
+    steps, and the run's ``train_stats.json``; for a checkpoint with ``timesteps`` the
+    checkpoint's and ``checkpoint`` its file name (the rest, wall time and throughput
+    included, are the whole run's)."""
+    model_file = Path(model_file)
+    run = model_file.parent
+    _, entry, _, _ = read_model_dir(run)
+    stats = json.loads((run / "train_stats.json").read_text())
+    if model_file.name.startswith("rl_model_"):
+        stats |= {"timesteps": int(model_file.stem.split("_")[2]), "checkpoint": model_file.name}
+    saved = yaml.load((run / entry["env_id"] / "config.yml").read_text(), Loader=yaml.UnsafeLoader)
+    config = {entry["env_id"]: {**dict(saved), "n_timesteps": stats["timesteps"]}}
+    return _write_model_dir(model_file, Path(out), config, stats)
+
+
+def _write_model_dir(model_file: Path, out: Path, config: dict, stats: dict) -> Path:
     out.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(run / f"{env_id}.zip", out / "model.zip")
-    norm = run / env_id / "vecnormalize.pkl"
+    shutil.copyfile(model_file, out / "model.zip")
+    norm = norm_file_of(model_file)
     if norm.is_file():
         shutil.copyfile(norm, out / "vecnormalize.pkl")
     else:
         (out / "vecnormalize.pkl").unlink(missing_ok=True)
     (out / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
-    shutil.copyfile(run / "train_stats.json", out / "train_stats.json")
+    (out / "train_stats.json").write_text(json.dumps(stats, indent=2) + "\n")
     return out

@@ -690,6 +690,28 @@ def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     assert [int(r["steps"]) for r in rows] == [128, 256]
     assert all(float(r["success_rate"]) in (0.0, 0.5, 1.0) for r in rows)
     assert (tmp_path / "learning_curves.png").stat().st_size > 0
+    # checkpoint selection: the best row's model file, its statistics and steps
+    lc.main([str(run), "--shapes", "2", "--every", "128", "--out", str(tmp_path / "sel"),
+             "--best-out", str(tmp_path / "sel" / "best")])  # fmt: skip
+    rows = list(csv.DictReader(open(tmp_path / "sel" / "learning_curves.csv")))
+    top = max(float(r["success_rate"]) for r in rows)
+    kept = [r for r in rows if float(r["success_rate"]) == top]
+    grips = [math.inf if r["grip_W_mean"] == "nan" else float(r["grip_W_mean"]) for r in kept]
+    chosen = kept[int(np.argmin(grips))]  # first of the lowest grip: the fewest steps
+    model_file = Path(chosen["model"])
+    assert (tmp_path / "sel" / "best" / "model.zip").read_bytes() == model_file.read_bytes()
+    norm_file = model_file.with_name(f"rl_model_vecnormalize_{chosen['steps']}_steps.pkl")
+    assert (tmp_path / "sel" / "best" / "vecnormalize.pkl").read_bytes() == norm_file.read_bytes()
+    stats = json.loads((tmp_path / "sel" / "best" / "train_stats.json").read_text())
+    assert stats["timesteps"] == int(chosen["steps"]) and stats["checkpoint"] == model_file.name
+    (entry,) = yaml.safe_load((tmp_path / "sel" / "best" / "config.yml").read_text()).values()
+    assert entry["n_timesteps"] == int(chosen["steps"])
+    models.load_agent(tmp_path / "sel" / "best")  # a model directory like any other
+    unfinished = tmp_path / "unfinished" / run.name
+    shutil.copytree(run, unfinished, ignore=shutil.ignore_patterns("train_stats.json"))
+    with pytest.raises(SystemExit):
+        lc.main([str(unfinished), "--best-out", str(tmp_path / "b2"), "--out", str(tmp_path)])
+    assert "has not finished" in capsys.readouterr().err
     for again in ("sampled", "sampled_again"):  # sampled play replays from the seeds
         lc.main([str(run), "--shapes", "2", "--every", "256", "--sampled", "--out",
                  str(tmp_path / again)])  # fmt: skip
