@@ -295,7 +295,9 @@ def results_page(
         "plans on the exact model of the scene (its fallback searches included); `simulator`, "
         "also the exact simulator on copies of the env's state beyond the env's own step. "
         "What a suite's env does for every policy alike (the `lift` suite's start at the "
-        "planner's placement) is not counted.",
+        "planner's placement) is not counted. A model plays the mean of its policy's "
+        "distribution; a row `ppo_<name>_sampled` is the same network playing actions drawn "
+        "from it, seeded with the episode's seed (`--sampled`).",
         "",
         f"Network-only rows: {_names(network)}.",
     ]
