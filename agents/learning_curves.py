@@ -17,11 +17,12 @@ one per seed, all of one env id). Two curves per run:
   ``agents.evaluate``): success rate and mean ``y* / W`` over the successes (those whose
   torque limits admit no grip, ``y* = inf``, left out).
 
-Writes ``learning_curves.png`` (two panels: success, ``y*/W``; the mean over seeds with the
-band from the lowest to the highest seed) and ``learning_curves.csv`` (one row per run and
-checkpoint) into ``--out``; with ``--best-out DIR`` also the model directory of the best
-model played (:func:`best`: checkpoint selection on the validation shapes). See
-``docs/training.md``.
+Writes ``learning_curves.png`` (three panels: success and ``y*/W`` against env steps, the
+mean over seeds with the band from the lowest to the highest seed; each run's success
+against its wall time, from when each model file was written) and ``learning_curves.csv``
+(one row per run and checkpoint) into ``--out``; with ``--best-out DIR`` also the model
+directory of the best model played (:func:`best`: checkpoint selection on the validation
+shapes). See ``docs/training.md``.
 """
 
 from __future__ import annotations
@@ -94,6 +95,16 @@ def training_success(run: Path, bin_steps: int) -> list[tuple[int, float]]:
             out.append((edge, won / done))
             done, won, edge = 0, 0, edge + bin_steps
     return out
+
+
+def wall_minutes(run: Path, model_file: Path) -> float:
+    """Minutes from the run's start (the earliest ``t_start`` its Monitor files record) to
+    when the model file was written (its modification time), NaN without Monitor files."""
+    starts = []
+    for path in run.glob("*.monitor.csv"):
+        with open(path) as f:
+            starts.append(json.loads(f.readline().lstrip("#"))["t_start"])
+    return (model_file.stat().st_mtime - min(starts)) / 60.0 if starts else math.nan
 
 
 def play(job: tuple) -> tuple[int, int, list[float]]:
@@ -185,6 +196,7 @@ def curves(
                 "steps": steps,
                 "success_rate": won / shapes,
                 "grip_W_mean": float(np.mean(grips)) if grips else math.nan,
+                "wall_min": wall_minutes(Path(run), Path(path)),
                 "model": path,
             }
         )
@@ -202,14 +214,15 @@ def best(rows: list[dict]) -> dict:
 
 
 def plot(path: Path, rows: list[dict], training: dict[str, list], title: str) -> None:
-    """The two panels: success (training episodes thin, checkpoints with the seed band) and
-    y*/W at the checkpoints."""
+    """Three panels: success (training episodes thin, checkpoints with the seed band) and
+    y*/W at the checkpoints against env steps, and each run's checkpoints' success against
+    wall time."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
     for name, points in training.items():
         if points:
             x, y = zip(*points, strict=True)
@@ -220,7 +233,7 @@ def plot(path: Path, rows: list[dict], training: dict[str, list], title: str) ->
         s for s in {r["steps"] for r in rows} if sum(r["steps"] == s for r in rows) == len(runs)
     )
     finals = [r for r in rows if r["steps"] not in steps]
-    for ax, key in zip(axes, ("success_rate", "grip_W_mean"), strict=True):
+    for ax, key in zip(axes[:2], ("success_rate", "grip_W_mean"), strict=True):
         by_step = [np.array([r[key] for r in rows if r["steps"] == s], float) for s in steps]
         mean = [np.nanmean(v) if np.isfinite(v).any() else math.nan for v in by_step]
         lo = [np.nanmin(v) if np.isfinite(v).any() else math.nan for v in by_step]
@@ -233,6 +246,13 @@ def plot(path: Path, rows: list[dict], training: dict[str, list], title: str) ->
             )
         ax.set_xlabel("env steps")
         ax.ticklabel_format(axis="x", style="sci", scilimits=(6, 6))
+    for name in dict.fromkeys(r["run"] for r in rows):
+        mine = sorted((r["wall_min"], r["success_rate"]) for r in rows if r["run"] == name)
+        axes[2].plot(*zip(*mine, strict=True), "-o", ms=3, label=name)
+    axes[2].set_xlabel("wall time of the run (minutes)")
+    axes[2].set_ylabel("success rate")
+    axes[2].set_ylim(0, 1.02)
+    axes[2].legend(fontsize=7)
     axes[0].set_ylabel("success rate")
     axes[0].set_ylim(0, 1.02)
     axes[1].set_ylabel("y* / W over successes (lower is better)")
