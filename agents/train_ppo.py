@@ -185,6 +185,7 @@ def train(env: str, **options) -> Path:
         "cpu": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
         "last_eval_mean_reward": float(last_eval) if math.isfinite(last_eval) else None,
         "run": str(run),
+        "trained_agent": str(args.trained_agent) if args.trained_agent else None,
         "versions": {
             "python": platform.python_version(),
             "torch": torch.__version__,

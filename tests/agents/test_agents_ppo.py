@@ -374,6 +374,8 @@ def test_training_from_a_trained_agent_starts_from_its_weights_and_statistics(tr
     for name, value in start.policy.state_dict().items():
         torch.testing.assert_close(weights[name], value, rtol=0.0, atol=0.0, msg=name)
     assert norm.obs_rms.count >= start_norm.obs_rms.count + 128
+    stats = json.loads((tmp_path / "again" / "train_stats.json").read_text())
+    assert stats["trained_agent"] == str(trained)  # where the run's steps started from
 
 
 def test_training_writes_to_runs_and_leaves_the_shipped_models(tmp_path, monkeypatch, capsys):
