@@ -32,7 +32,6 @@ import csv
 import json
 import math
 import os
-import re
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -45,6 +44,7 @@ import yaml
 
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.models import (
+    checkpoint_steps,
     export_checkpoint,
     load_checkpoint,
     network_action,
@@ -57,7 +57,6 @@ from grasp_env.cli import HelpFormatter, out_dir_problem, positive_int
 #: First seed of the validation episodes: apart from training (small seeds) and from the
 #: held-out suites of ``agents.evaluate`` (1,000,000 on).
 VALIDATION_SEED = 2_000_000
-_CHECKPOINT = re.compile(r"rl_model_(\d+)_steps\.zip")
 
 
 def checkpoints(run: Path, every: int) -> list[tuple[int, Path]]:
@@ -65,8 +64,8 @@ def checkpoints(run: Path, every: int) -> list[tuple[int, Path]]:
     of its final model (at the steps its ``train_stats.json`` records)."""
     found = []
     for path in run.glob("rl_model_*_steps.zip"):
-        steps = int(_CHECKPOINT.fullmatch(path.name).group(1))
-        if steps % every == 0:
+        steps = checkpoint_steps(path)
+        if steps is not None and steps % every == 0:
             found.append((steps, path))
     stats = run / "train_stats.json"
     if stats.is_file():

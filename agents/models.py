@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import re
 import shutil
 from pathlib import Path
 from typing import Any
@@ -128,6 +129,17 @@ def load_checkpoint(model_file: Path):
     return PPO.load(model_file, device="cpu"), load_norm(norm_file_of(model_file))
 
 
+#: A checkpoint's file name in a zoo run folder (the zoo's ``CheckpointCallback``), which
+#: holds its env steps.
+CHECKPOINT = re.compile(r"rl_model_(\d+)_steps\.zip")
+
+
+def checkpoint_steps(model_file: Path) -> int | None:
+    """The env steps of a checkpoint file, or None for another file (a final model)."""
+    match = CHECKPOINT.fullmatch(model_file.name)
+    return None if match is None else int(match.group(1))
+
+
 def norm_file_of(model_file: Path) -> Path:
     """The ``VecNormalize`` statistics saved with a model file of a zoo run folder."""
     name = model_file.name
@@ -186,8 +198,9 @@ def export_checkpoint(model_file: str | os.PathLike, out: str | os.PathLike) -> 
     run = model_file.parent
     _, entry, _, _ = read_model_dir(run)
     stats = json.loads((run / "train_stats.json").read_text())
-    if model_file.name.startswith("rl_model_"):
-        stats |= {"timesteps": int(model_file.stem.split("_")[2]), "checkpoint": model_file.name}
+    steps = checkpoint_steps(model_file)
+    if steps is not None:
+        stats |= {"timesteps": steps, "checkpoint": model_file.name}
     saved = yaml.load((run / entry["env_id"] / "config.yml").read_text(), Loader=yaml.UnsafeLoader)
     config = {entry["env_id"]: {**dict(saved), "n_timesteps": stats["timesteps"]}}
     return _write_model_dir(model_file, Path(out), config, stats)

@@ -680,6 +680,17 @@ def test_training_info_passes_on_the_monitors_episode():
     assert info["episode"]["l"] == 3 and info["episode"]["is_success"] == info["is_success"]
 
 
+def test_checkpoint_steps_read_from_the_zoos_file_names():
+    from agents.models import checkpoint_steps, norm_file_of
+
+    assert checkpoint_steps(Path("run/rl_model_2000000_steps.zip")) == 2_000_000
+    assert checkpoint_steps(Path(f"run/{ENV_ID}.zip")) is None
+    assert checkpoint_steps(Path("run/rl_model_vecnormalize_2000000_steps.pkl")) is None
+    assert norm_file_of(Path("run/rl_model_64_steps.zip")) == Path(
+        "run/rl_model_vecnormalize_64_steps.pkl"
+    )
+
+
 def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     """The tiny run's checkpoints (every 128 steps) played on validation shapes, and its
     training episodes binned; a folder without checkpoints is refused by name."""
