@@ -78,13 +78,22 @@ GIF_SCENE, GIF_SIZE, GIF_EVERY = "fig13", (320, 240), 2
 #: What each kind of policy calls at test time (``agents.models.TEST_TIMES``); a ``"ppo"``
 #: model's is its training entry's (``agents.models.entry_test_time``). An RLlib checkpoint
 #: plays on its env id alone.
-KIND_TEST_TIMES = {"scripted": "planner", "random": "network", "rllib": "network"}
+KIND_TEST_TIMES = {
+    "scripted": "planner", "scripted_in_place": "planner", "random": "network",
+    "rllib": "network",
+}  # fmt: skip
+#: The planner kinds: ``"scripted"`` with all its fallbacks; ``"scripted_in_place"`` lifting
+#: only from where the env puts the hand (``ScriptedPolicy(fallbacks=False)``: no
+#: re-placement, no exploratory lifting), which tells the part of the planner's success that
+#: needs a better placement than the start's.
+SCRIPTED_KINDS = ("scripted", "scripted_in_place")
 
 
 # ---------------------------------------------------------------------- policies
 @dataclass(frozen=True)
 class PolicySpec:
-    """A policy to evaluate: ``kind`` is "scripted", "random", "ppo" (with ``model_dir``) or
+    """A policy to evaluate: ``kind`` is "scripted" or "scripted_in_place"
+    (:data:`SCRIPTED_KINDS`), "random", "ppo" (with ``model_dir``) or
     "rllib" (``model_dir`` is an RLlib checkpoint, see ``agents.rllib_policy``); ``wrapper``:
     the wrapper class and arguments of a model that plays beside the planner
     (``agents.planner_base.planner_wrapper``); ``test_time``: what the policy calls at test
@@ -153,10 +162,11 @@ def rllib_spec(path: str | os.PathLike) -> PolicySpec:
 
 def default_policies(
     model_dirs: list[str] | None, rllib_checkpoints: Sequence[str] = (),
-    sampled_dirs: Sequence[str] = (),
+    sampled_dirs: Sequence[str] = (), in_place: bool = False,
 ) -> list[PolicySpec]:  # fmt: skip
-    """Scripted (when ``agents.scripted`` exists), the models, the models of ``sampled_dirs``
-    playing sampled actions, the RLlib checkpoints, random."""
+    """Scripted (when ``agents.scripted`` exists; with ``in_place`` also the planner lifting
+    from where the env puts the hand, ``scripted_in_place``), the models, the models of
+    ``sampled_dirs`` playing sampled actions, the RLlib checkpoints, random."""
     if model_dirs is None:
         model_dirs = [str(p.parent) for p in sorted(MODEL_DIR.glob("*/model.zip"))]
     specs = []
@@ -166,6 +176,8 @@ def default_policies(
         print("agents.scripted is not available: the scripted policy is left out")
     else:
         specs.append(PolicySpec("scripted", "scripted", SCRIPTED_KWARGS))
+        if in_place:
+            specs.append(PolicySpec("scripted_in_place", "scripted_in_place", SCRIPTED_KWARGS))
     specs += [ppo_spec(d) for d in model_dirs]
     specs += [ppo_spec(d, sampled=True) for d in sampled_dirs]
     specs += [rllib_spec(c) for c in rllib_checkpoints]
@@ -175,10 +187,10 @@ def default_policies(
 
 def make_policy(spec: PolicySpec, env: gym.Env) -> tuple[Callable, Callable]:
     """``(reset(obs, info, seed), act(obs))`` for a spec on an env."""
-    if spec.kind == "scripted":
+    if spec.kind in SCRIPTED_KINDS:
         from agents.scripted import ScriptedPolicy
 
-        policy = ScriptedPolicy(env)
+        policy = ScriptedPolicy(env, fallbacks=spec.kind == "scripted")
         return (lambda obs, info, seed: policy.reset(obs, info)), policy.act
     if spec.kind == "random":
         box = env.action_space

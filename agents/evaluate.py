@@ -1,6 +1,6 @@
 """Compare the scripted planner, trained PPO agents and a random policy on fixed seeds.
 
-    python -m agents.evaluate [--models DIR ...] [--sampled DIR ...]
+    python -m agents.evaluate [--models DIR ...] [--sampled DIR ...] [--planner-in-place]
         [--rllib-checkpoint PATH ...] [--episodes N] [--out DIR] [--workers 2]
         [--results-page docs/results.md [--readme README.md]]
         [--friction 0,0.1,0.2,0.3,0.4 [--friction-page docs/friction_results.md]]
@@ -31,7 +31,9 @@ the same perturbations), with ``uncertainty.png`` and ``--uncertainty-page PATH`
 says what its policy calls at test time (``test_time``: ``agents.models.TEST_TIMES``). A
 model plays its policy's mean action; ``--sampled`` plays the models it lists also with
 actions drawn from their policy's distribution (rows ``ppo_<name>_sampled``: still the network
-alone, torch's generator seeded with each episode's seed so that every episode replays). See
+alone, torch's generator seeded with each episode's seed so that every episode replays);
+``--planner-in-place`` adds the planner lifting only from where the env puts the hand (row
+``scripted_in_place``: no re-placement, no exploration). See
 ``docs/training.md`` for the metrics. The suites, policies and episodes: ``agents.episodes``;
 the statistics, tables, chart and results page: ``agents.summary``.
 """
@@ -55,6 +57,7 @@ import grasp_env
 from agents.episodes import (
     GIF_SCENE,
     HELDOUT_SEED,
+    SCRIPTED_KINDS,
     SHAPE_SUITES,
     Episode,
     PolicySpec,
@@ -301,6 +304,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--no-scripted", action="store_true", help="leave the planner out (default: off)"
     )
+    parser.add_argument(
+        "--planner-in-place",
+        action="store_true",
+        help="also the planner lifting only from where the env puts the hand, without "
+        "re-placing it or exploring (row scripted_in_place; default: off)",
+    )
     for sweep, parse, metavar, what in (
         (FRICTION, friction_levels, "MU,MU,...", "Coulomb coefficients"),
         (UNCERTAINTY, uncertainty_levels, "SIGMA,SIGMA,...",
@@ -319,11 +328,13 @@ def main(argv: list[str] | None = None) -> None:
     if args.workers > MAX_WORKERS:
         parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
     try:
-        specs = default_policies(args.models, args.rllib_checkpoint, args.sampled)
+        specs = default_policies(
+            args.models, args.rllib_checkpoint, args.sampled, args.planner_in_place
+        )
     except ValueError as exc:
         parser.error(str(exc))
     if args.no_scripted:
-        specs = [s for s in specs if s.kind != "scripted"]
+        specs = [s for s in specs if s.kind not in SCRIPTED_KINDS]
     known = grasp_env.bundled_scenes()
     for scene in args.scenes or []:
         if scene not in known:

@@ -297,7 +297,9 @@ def results_page(
         "What a suite's env does for every policy alike (the `lift` suite's start at the "
         "planner's placement) is not counted. A model plays the mean of its policy's "
         "distribution; a row `ppo_<name>_sampled` is the same network playing actions drawn "
-        "from it, seeded with the episode's seed (`--sampled`).",
+        "from it, seeded with the episode's seed (`--sampled`). A row `scripted_in_place` "
+        "(`--planner-in-place`) is the planner lifting from where the env puts the hand, "
+        "without re-placing it or exploring.",
         "",
         f"Network-only rows: {_names(network)}.",
     ]

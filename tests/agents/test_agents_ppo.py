@@ -172,6 +172,38 @@ def test_the_shipped_grip_agent_lightens_the_planners_grip():
     assert agent.grip_W < planner.grip_W - 1.0
 
 
+@pytest.mark.parametrize("k", [0, 1])
+def test_the_planner_in_place_lifts_where_lifting_from_the_first_placement_does(k):
+    """``scripted_in_place`` on the ``lift`` suite succeeds exactly where the planner's
+    lifting phase, run directly from the first placement, reaches form closure: on shape 0
+    it does not (the full planner re-places the hand and lifts it), on shape 1 it does."""
+    from grasp_env.planning.grasp import first_placement
+    from grasp_env.planning.lifting import lift
+    from grasp_env.simulator import Simulator
+
+    seed = ep.HELDOUT_SEED + k
+    env = gym.make(LIFT_ENV_ID, **ep.LIFT_KWARGS)
+    env.reset(seed=seed)
+    sim = Simulator(env.unwrapped.scene)
+    lifts_in_place = lift(sim, first_placement(sim)[0], 0.02).status == "form_closure"
+    assert lifts_in_place == (k == 1)
+    in_place = ep.PolicySpec("scripted_in_place", "scripted_in_place", ep.SCRIPTED_KWARGS)
+    played = ep.run_episode(in_place, "lift", "", seed, None)
+    assert played.success == lifts_in_place and not played.error
+    planner = ep.PolicySpec("scripted", "scripted", ep.SCRIPTED_KWARGS)
+    assert ep.run_episode(planner, "lift", "", seed, None).success
+
+
+def test_the_planner_in_place_is_a_row_on_request(tmp_path, capsys):
+    argv = ["--models", "--scenes", "fig13", "--max-steps", "2", "--episodes", "1"]
+    ev.main([*argv, "--out", str(tmp_path / "without")])
+    assert "scripted_in_place" not in capsys.readouterr().out
+    ev.main([*argv, "--planner-in-place", "--out", str(tmp_path / "with")])
+    printed = capsys.readouterr().out
+    assert "| heldout | scripted_in_place | planner | 1 |" in printed
+    assert "| heldout | scripted | planner | 1 |" in printed
+
+
 def test_what_rllib_and_evaluation_import_needs_neither_sb3_nor_the_zoo():
     """RLlib's env runners and ``agents.evaluate`` of RLlib checkpoints run where neither is
     installed (the rllib extra)."""

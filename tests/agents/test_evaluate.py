@@ -30,6 +30,8 @@ CONFIG_TEST_TIMES = {
     "ppo_finetune.yml": "network",
     "ppo_planner_starts.yml": "network",
     "ppo_scene_starts.yml": "network",
+    "ppo_scene_starts_no_shaping.yml": "network",
+    "ppo_scene_starts_no_curriculum.yml": "network",
     "ppo_residual.yml": "planner",
     "ppo_handover.yml": "planner",
     "ppo_grip.yml": "simulator",
@@ -78,6 +80,7 @@ def test_test_time_is_declared_by_the_agent_kind():
     assert PlannerGrip.test_time_of({"probe_turns": False, "palm_only": True}) == "planner"
     assert PlannerResidual.test_time_of({"probe_turns": True}) == "planner"  # no such option
     assert ep.PolicySpec("scripted", "scripted").test_time == "planner"
+    assert ep.PolicySpec("scripted_in_place", "scripted_in_place").test_time == "planner"
     assert ep.PolicySpec("random", "random").test_time == "network"
     assert ep.PolicySpec("x", "rllib").test_time == "network"
     assert ep.PolicySpec("x", "ppo").test_time == "network"  # no wrapper: its network alone
