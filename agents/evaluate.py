@@ -69,6 +69,7 @@ from agents.provenance import git_commit, utc_now
 from agents.summary import (
     README_BEGIN,
     README_END,
+    REFERENCE_NAMES,
     bar_chart,
     markdown_table,
     paired_rows,
@@ -137,7 +138,7 @@ def evaluate(
     test_times = {spec.name: spec.test_time for spec in specs}
     rows = summarize(results, test_times)
     write_csv(out / "summary.csv", rows)
-    paired = paired_rows(results, test_times)
+    paired = [row for ref in REFERENCE_NAMES for row in paired_rows(results, test_times, ref)]
     if paired:
         write_csv(out / "paired.csv", paired)
     table = markdown_table(rows)

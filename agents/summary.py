@@ -131,6 +131,12 @@ def _summarize_one(
 
 #: The policy the shape-by-shape comparison measures the others against.
 REFERENCE = "scripted"
+#: The second reference, where it played (``agents.evaluate --planner-in-place``): the
+#: planner lifting from where the env puts the hand, which tells the shapes a policy grasps
+#: only by finding a better placement than the start's from those it misses from there.
+IN_PLACE_REFERENCE = "scripted_in_place"
+#: How the pages name each reference.
+REFERENCE_NAMES = {REFERENCE: "the planner", IN_PLACE_REFERENCE: "the planner in place"}
 #: The suites paired shape by shape (one episode per seed and policy).
 PAIRED_SUITES = ("heldout", "wide", "lift", "perturbed")
 #: y*/W differences within this are counted as equal (the same grasp, up to rounding).
@@ -192,11 +198,11 @@ def paired_rows(
     return rows
 
 
-def paired_table(rows: list[dict[str, Any]]) -> str:
-    """:func:`paired_rows` as a markdown table."""
+def paired_table(rows: list[dict[str, Any]], against: str = "the planner") -> str:
+    """:func:`paired_rows` (of one reference, named ``against``) as a markdown table."""
     lines = [
-        "| suite | policy | test time | n | grasped by it alone | by the planner alone "
-        "| both grasp | y*/W minus the planner's, mean (95% CI) | lower / equal / higher |",
+        f"| suite | policy | test time | n | grasped by it alone | by {against} alone "
+        f"| both grasp | y*/W minus {against}'s, mean (95% CI) | lower / equal / higher |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in rows:
@@ -309,16 +315,19 @@ def results_page(
     for suite in dict.fromkeys(r["suite"] for r in rows):
         table = markdown_table([r for r in rows if r["suite"] == suite])
         lines += ["", f"## `{suite}`: {SUITE_TITLES.get(suite, suite)}", "", table.rstrip("\n")]
-        against = [r for r in paired or () if r["suite"] == suite]
-        if against:
-            lines += [
-                "",
-                "Against the planner, shape by shape (the same seeds): the shapes one of them "
-                "grasps and the other does not, and on the shapes both grasp the difference of "
-                "y\\*/W with a bootstrap 95% interval of its mean:",
-                "",
-                paired_table(against).rstrip("\n"),
+        for reference, name in REFERENCE_NAMES.items():
+            against = [
+                r for r in paired or () if r["suite"] == suite and r["reference"] == reference
             ]
+            if against:
+                lines += [
+                    "",
+                    f"Against {name} (`{reference}`), shape by shape (the same seeds): the "
+                    "shapes one of them grasps and the other does not, and on the shapes both "
+                    "grasp the difference of y\\*/W with a bootstrap 95% interval of its mean:",
+                    "",
+                    paired_table(against, name).rstrip("\n"),
+                ]
     return "\n".join(lines) + "\n"
 
 

@@ -193,6 +193,34 @@ def test_policies_are_paired_with_the_planner_shape_by_shape():
     assert sm.paired_rows(episodes, reference="nobody") == []
 
 
+def test_policies_are_paired_with_the_planner_in_place_too():
+    """Where ``scripted_in_place`` played, every policy (the planner too) is also compared
+    with it, in a table of its own under the planner's."""
+    grasps = {"scripted": (1, 1, 1, 0), "scripted_in_place": (1, 0, 0, 0), "ppo_x": (1, 1, 0, 1)}
+    episodes = [
+        _episode("lift", f"shape_{k}", name, k, *((True, 1.0, 10) if ok else ()))
+        for name, oks in grasps.items()
+        for k, ok in enumerate(oks)
+    ]
+    times = {"scripted": "planner", "scripted_in_place": "planner", "ppo_x": "network"}
+    paired = [r for ref in sm.REFERENCE_NAMES for r in sm.paired_rows(episodes, times, ref)]
+    counts = {
+        (r["reference"], r["policy"]): (r["policy_only"], r["reference_only"]) for r in paired
+    }
+    assert counts == {
+        ("scripted", "scripted_in_place"): (0, 2),
+        ("scripted", "ppo_x"): (1, 1),
+        ("scripted_in_place", "scripted"): (2, 0),  # the shapes that need another placement
+        ("scripted_in_place", "ppo_x"): (2, 0),
+    }
+    page = sm.results_page(sm.summarize(episodes), "cmd", "date", "abc", paired=paired)
+    planner = page.index("Against the planner (`scripted`)")
+    in_place = page.index("Against the planner in place (`scripted_in_place`)")
+    assert planner < in_place
+    assert "| by the planner in place alone |" in page[in_place:]
+    assert "| lift | scripted | planner | 4 | 2 | 0 | 1 |" in page[in_place:]
+
+
 def test_results_page_links_the_metrics_from_where_it_is_written(tmp_path, monkeypatch):
     rows = sm.summarize(EPISODES, TEST_TIMES)
     monkeypatch.setattr(ev, "evaluate", lambda *a, **k: (rows, []))
