@@ -34,7 +34,7 @@ SHIPPED = {
     ("configs/ppo.yml", LIFT_ENV_ID): "lift_palm",
     ("configs/ppo_residual.yml", LIFT_ENV_ID): "lift_residual",
     ("configs/ppo_grip.yml", LIFT_ENV_ID): "lift_grip",
-    ("configs/ppo_scene_starts.yml", LIFT_ENV_ID): "scene_starts",
+    ("configs/ppo_scene_starts_no_shaping.yml", LIFT_ENV_ID): "scene_starts",
 }
 
 #: What a policy calls at test time, from least to most: ``"network"``, its network alone on
