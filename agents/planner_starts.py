@@ -2,7 +2,7 @@
 for :class:`agents.wrappers.PlannerStarts` (a reverse curriculum, training only).
 
     python -m agents.planner_starts --out runs/planner_starts.pkl [--shapes 300] [--seed 0]
-        [--approach]
+        [--approach | --scripted] [--workers 1]
 
 The shapes are the lifting task's (``FrictionlessGraspLift-v0``'s random shapes, its reset
 with seed ``--seed + k``; seeds that meet the held-out and validation episodes, 1,000,000 to
@@ -17,6 +17,14 @@ the scripted policy drives), sampled at most one action's increment apart, the o
 rest; then the placement and the lift, for a curriculum that reaches back to where the
 held-out episodes start. A shape the planner lifts but finds no approach to is left out.
 
+With ``--scripted`` a shape's states are those of the scripted planner's episode in the
+lifting task itself (:class:`agents.scripted_policy.ScriptedPolicy` from the env's start,
+the planner's first placement, palm actions on), kept where the episode reaches a grasp:
+its start and every state the env steps through up to the first grasp. Where lifting from the first
+placement fails, the policy drives the hand to another placement or explores with palm
+motion, so these states teach what the plans from the scene's start never show: leaving a
+placement that does not lift.
+
 The file is a pickle: a list of ``{"seed", "scene", "hands" (k, 5), "poses" (k, 3)}``, one
 per lifted shape.
 """
@@ -29,6 +37,8 @@ import os
 import pickle
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
@@ -39,6 +49,8 @@ import numpy as np
 
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.episodes import seed_problem
+from agents.scripted_policy import ScriptedPolicy
+from grasp_env.cli import positive_int
 from grasp_env.envs.checks import palm_problem, workspace_problem
 from grasp_env.planning import approach_path, plan_grasp
 from grasp_env.simulator import Simulator
@@ -93,6 +105,12 @@ def trajectory(scene, seed: int, approach: bool = False) -> dict | None:
             return None
         hands = before + hands
         poses = [start.object_pose] * len(before) + poses
+    return kept_states(scene, seed, hands, poses)
+
+
+def kept_states(scene, seed: int, hands, poses) -> dict | None:
+    """The states of ``hands``/``poses`` a reset can start from (palm and object centre in
+    the palm workspace), as a starts-file entry; None where none is."""
     kept = [
         i
         for i, (hand, pose) in enumerate(zip(hands, poses, strict=True))
@@ -108,21 +126,52 @@ def trajectory(scene, seed: int, approach: bool = False) -> dict | None:
     }
 
 
-def collect(shapes: int, seed: int, approach: bool = False) -> list[dict]:
+def scripted_episode(seed: int) -> dict | None:
+    """The states of the scripted planner's episode in the lifting task reset with ``seed``
+    (palm actions on), from the start to the first grasp (form closure off the support);
+    None where the episode ends without one."""
+    env = gym.make(ENV_ID, palm_control=True)
+    obs, info = env.reset(seed=seed)
+    policy = ScriptedPolicy(env)
+    policy.reset(obs, info)
+    base = env.unwrapped
+    hands, poses = [base.state.hand.copy()], [base.state.object_pose.copy()]
+    done = info["is_success"]
+    while not done:
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        hands.append(base.state.hand.copy())
+        poses.append(base.state.object_pose.copy())
+        done = info["is_success"] or terminated or truncated
+    scene = base.scene
+    env.close()
+    return kept_states(scene, seed, hands, poses) if info["is_success"] else None
+
+
+def _planned(seed: int, approach: bool) -> dict | None:
+    env = gym.make(ENV_ID).unwrapped
+    env.reset(seed=seed)
+    return trajectory(env.scene, seed, approach)
+
+
+def collect(
+    shapes: int, seed: int, approach: bool = False, scripted: bool = False, workers: int = 1
+) -> list[dict]:
     """The trajectories of the lifting task's shapes on seeds ``seed`` to ``seed + shapes
-    - 1`` (:func:`trajectory`); ValueError where a seed is reserved."""
+    - 1`` (:func:`trajectory`, or with ``scripted`` :func:`scripted_episode`), in seed order,
+    over ``workers`` processes; ValueError where a seed is reserved."""
     problem = seed_problem(seed, shapes) if shapes >= 1 else f"--shapes must be >= 1, got {shapes}"
     if problem:
         raise ValueError(problem)
-    env = gym.make(ENV_ID).unwrapped
-    out = []
-    for s in range(seed, seed + shapes):
-        env.reset(seed=s)
-        found = trajectory(env.scene, s, approach)
-        if found is not None:
-            out.append(found)
-    env.close()
-    return out
+    if approach and scripted:
+        raise ValueError("--approach and --scripted exclude each other")
+    one = scripted_episode if scripted else partial(_planned, approach=approach)
+    seeds = range(seed, seed + shapes)
+    if workers > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            found = list(pool.map(one, seeds))
+    else:
+        found = [one(s) for s in seeds]
+    return [t for t in found if t is not None]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -137,12 +186,18 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="begin each plan's states at the scene's start, along the planner's approach",
     )
+    parser.add_argument(
+        "--scripted",
+        action="store_true",
+        help="the scripted planner's episodes in the lifting task from its own start instead",
+    )
+    parser.add_argument("--workers", type=positive_int, default=1, help="processes")
     args = parser.parse_args(argv)
     if args.out.exists():
         parser.error(f"--out {str(args.out)!r} exists; remove it or name another file")
     start = time.perf_counter()
     try:
-        found = collect(args.shapes, args.seed, args.approach)
+        found = collect(args.shapes, args.seed, args.approach, args.scripted, args.workers)
     except ValueError as exc:
         parser.error(str(exc))
     args.out.parent.mkdir(parents=True, exist_ok=True)
@@ -150,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
         pickle.dump(found, f)
     states = sum(len(t["poses"]) for t in found)
     print(
-        f"{len(found)} of {args.shapes} shapes lifted, {states} states, "
+        f"{len(found)} of {args.shapes} shapes grasped, {states} states, "
         f"{time.perf_counter() - start:.0f} s: {args.out}"
     )
     return 0

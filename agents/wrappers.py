@@ -63,19 +63,19 @@ class PlannerStarts(gym.Wrapper):
     """Starts along the planner's lifts, a reverse curriculum (training only).
 
     At a reset without options, with probability ``probability``, the episode starts from a
-    state of one of the planner's lifts in ``starts`` (the file
-    ``python -m agents.planner_starts`` writes): its shape, hand and object pose, through the
-    env's reset options. Which state: one drawn uniformly from the last ``ceil(reach * n)`` of
-    the lift's ``n`` states, ``reach`` growing linearly with the env steps this wrapper has
-    seen, from ``first_reach`` to 1 at ``curriculum_steps``: first the states next to form
-    closure, then ever earlier ones, back to the placement the lift starts from. The other
-    resets are the env's own, and so is a reset whose state the simulator cannot settle
-    (counted in ``unsettled``: training goes on). The draws are the wrapper's own
-    generator's, seeded by ``reset(seed=...)``.
+    state of one of the planner's lifts in ``starts`` (a file ``python -m
+    agents.planner_starts`` writes, or a list of them, their lifts pooled): its shape, hand
+    and object pose, through the env's reset options. Which state: one drawn uniformly from
+    the last ``ceil(reach * n)`` of the lift's ``n`` states, ``reach`` growing linearly with
+    the env steps this wrapper has seen, from ``first_reach`` to 1 at ``curriculum_steps``:
+    first the states next to form closure, then ever earlier ones, back to the placement the
+    lift starts from. The other resets are the env's own, and so is a reset whose state the
+    simulator cannot settle (counted in ``unsettled``: training goes on). The draws are the
+    wrapper's own generator's, seeded by ``reset(seed=...)``.
     """
 
     def __init__(
-        self, env: gym.Env, starts: str, probability: float = 0.5,
+        self, env: gym.Env, starts: str | list[str], probability: float = 0.5,
         curriculum_steps: int = 1_000_000, first_reach: float = 0.1,
     ) -> None:  # fmt: skip
         super().__init__(env)
@@ -85,15 +85,20 @@ class PlannerStarts(gym.Wrapper):
             raise ValueError(f"first_reach must be in (0, 1], got {first_reach!r}")
         if not curriculum_steps >= 1:
             raise ValueError(f"curriculum_steps must be >= 1, got {curriculum_steps!r}")
-        if not Path(starts).is_file():
-            raise ValueError(
-                f"starts {str(starts)!r} is not a file: write it first with "
-                f"python -m agents.planner_starts --out {starts}"
-            )
-        with open(starts, "rb") as f:
-            self.lifts = pickle.load(f)
+        self.lifts = []
+        for path in [starts] if isinstance(starts, str | Path) else starts:
+            if not Path(path).is_file():
+                raise ValueError(
+                    f"starts {str(path)!r} is not a file: write it first with "
+                    f"python -m agents.planner_starts --out {path}"
+                )
+            with open(path, "rb") as f:
+                lifts = pickle.load(f)
+            if not lifts:
+                raise ValueError(f"starts {str(path)!r} holds no lift")
+            self.lifts += lifts
         if not self.lifts:
-            raise ValueError(f"starts {starts!r} holds no lift")
+            raise ValueError(f"starts {starts!r} names no file")
         self.probability, self.first_reach = float(probability), float(first_reach)
         self.curriculum_steps = int(curriculum_steps)
         self.steps = self.unsettled = 0

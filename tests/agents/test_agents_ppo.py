@@ -57,11 +57,13 @@ ENTRIES_OF_FILES = [
 def test_config_entry_builds_its_env(path, env_id, tmp_path, monkeypatch):
     entry = cf.get_entry(cf.load_config(path), env_id)
     for cls, kwargs in cf.wrapper_specs(entry):
-        if cls is PlannerStarts:  # the file a command writes first: a small one, in a tmp dir
+        if cls is PlannerStarts:  # the files a command writes first: small ones, in a tmp dir
             monkeypatch.chdir(tmp_path)
-            starts = tmp_path / kwargs["starts"]
-            starts.parent.mkdir(parents=True)
-            starts.write_bytes(pickle.dumps(collect(1, 0)))
+            names = kwargs["starts"]
+            for name in [names] if isinstance(names, str) else names:
+                starts = tmp_path / name
+                starts.parent.mkdir(parents=True, exist_ok=True)
+                starts.write_bytes(pickle.dumps(collect(1, 0)))
     cf.check_entry(entry)
     kwargs = cf.ppo_kwargs(entry)
     assert set(kwargs).isdisjoint(cf.ENTRY_KEYS)

@@ -9,7 +9,14 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.planner_starts import APPROACH_SPACING, ENV_ID, collect, main, trajectory
+from agents.planner_starts import (
+    APPROACH_SPACING,
+    ENV_ID,
+    collect,
+    main,
+    scripted_episode,
+    trajectory,
+)
 from agents.wrappers import PlannerStarts
 from grasp_env.errors import SimulationError
 
@@ -69,6 +76,37 @@ def test_approach_states_lead_from_the_scene_start_to_the_lift():
         assert not info["is_success"]
     # the placement: the plan's pre-liftoff state, the hand touching the object at rest
     assert np.allclose(whole["poses"][k - 1], rest.object_pose, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_scripted_states_follow_the_lifting_tasks_episode_to_its_grasp(seed):
+    """The scripted planner's episode from the lifting task's own start: every state one env
+    step from the one before, the first the task's start, the last the first grasp. Shape 5's
+    first placement does not lift: the policy moves the palm to another one."""
+    found = scripted_episode(seed)
+    env = gym.make(ENV_ID, palm_control=True).unwrapped
+    env.reset(seed=seed)
+    assert np.array_equal(found["hands"][0], env.state.hand)
+    assert np.array_equal(found["poses"][0], env.state.object_pose)
+    w = env.scene.palm.width
+    steps = np.abs(np.diff(found["hands"], axis=0))
+    largest = np.concatenate([env.max_palm_step * [w, w, 1.0], [env.max_finger_step] * 2])
+    assert (steps <= largest * (1 + 1e-6)).all()
+    palm_moved = np.abs(found["hands"][:, :3] - found["hands"][0, :3]).max()
+    assert (palm_moved > 0.05 * w) == (seed == 5)
+    successes = []
+    for hand, pose in zip(found["hands"], found["poses"], strict=True):
+        options = {"scene": env.scene, "palm": hand[:3], "fingers": hand[3:], "object_pose": pose}
+        successes.append(env.reset(seed=0, options=options)[1]["is_success"])
+    assert successes[-1] and not any(successes[:-1])
+
+
+def test_a_scripted_episode_that_does_not_grasp_gives_no_states(monkeypatch):
+    def still(self, obs):
+        return np.zeros(5, np.float32)
+
+    monkeypatch.setattr("agents.planner_starts.ScriptedPolicy.act", still)
+    assert scripted_episode(0) is None
 
 
 def test_curriculum_reaches_back_from_form_closure(starts):
@@ -141,3 +179,17 @@ def test_a_missing_starts_file_is_named_with_the_command_that_writes_it(tmp_path
     missing = str(tmp_path / "starts.pkl")
     with pytest.raises(ValueError, match=r"starts .*starts\.pkl.* agents\.planner_starts"):
         PlannerStarts(gym.make(ENV_ID), missing)
+
+
+def test_approach_and_scripted_states_exclude_each_other():
+    with pytest.raises(ValueError, match=r"--approach and --scripted"):
+        collect(1, 0, approach=True, scripted=True)
+
+
+def test_a_list_of_starts_files_pools_their_lifts(starts, tmp_path):
+    one = PlannerStarts(gym.make(ENV_ID), starts)
+    both = PlannerStarts(gym.make(ENV_ID), [starts, starts])
+    assert len(both.lifts) == 2 * len(one.lifts)
+    missing = str(tmp_path / "other.pkl")
+    with pytest.raises(ValueError, match=r"starts .*other\.pkl.* agents\.planner_starts"):
+        PlannerStarts(gym.make(ENV_ID), [starts, missing])
