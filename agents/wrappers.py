@@ -85,8 +85,11 @@ class PlannerStarts(gym.Wrapper):
             raise ValueError(f"first_reach must be in (0, 1], got {first_reach!r}")
         if not curriculum_steps >= 1:
             raise ValueError(f"curriculum_steps must be >= 1, got {curriculum_steps!r}")
+        paths = [starts] if isinstance(starts, str | Path) else starts
+        if not isinstance(paths, list | tuple) or not all(isinstance(p, str | Path) for p in paths):
+            raise ValueError(f"starts must be a file name or a list of them, got {starts!r}")
         self.lifts = []
-        for path in [starts] if isinstance(starts, str | Path) else starts:
+        for path in paths:
             if not Path(path).is_file():
                 raise ValueError(
                     f"starts {str(path)!r} is not a file: write it first with "

@@ -190,6 +190,9 @@ def test_a_list_of_starts_files_pools_their_lifts(starts, tmp_path):
     one = PlannerStarts(gym.make(ENV_ID), starts)
     both = PlannerStarts(gym.make(ENV_ID), [starts, starts])
     assert len(both.lifts) == 2 * len(one.lifts)
+    for bad in (5, [starts, 5], []):
+        with pytest.raises(ValueError, match=r"starts .*(file name|names no file)"):
+            PlannerStarts(gym.make(ENV_ID), bad)
     missing = str(tmp_path / "other.pkl")
     with pytest.raises(ValueError, match=r"starts .*other\.pkl.* agents\.planner_starts"):
         PlannerStarts(gym.make(ENV_ID), [starts, missing])
