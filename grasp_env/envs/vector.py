@@ -119,6 +119,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         self._seen = np.zeros((n, size), dtype=np.float32)
         self._info = np.zeros((n, kernel.INFO))
         self._status = np.zeros(n, dtype=np.int64)
+        self._cost = np.zeros(n, dtype=np.int64)  # each row's last step, in cycles
         self._friction = first.friction > 0.0
         self._uncertain = first._uncertain
         self._everyone = np.ones(n, dtype=bool)  # the mask of the entries every sub-env has
@@ -227,7 +228,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         step_batch(
             self._models, self._consts, self._settings, self._q, self._h, self._keys, self._rows,
             self._counts, self._an, self._ep, self._obs, self._low, self._high, actions,
-            self._seen, self._info, self._status, self.threads,
+            self._seen, self._info, self._status, self.threads, self._cost,
         )  # fmt: skip
         if self._uncertain:
             self._show_nominal()

@@ -6,7 +6,10 @@ threads, nor on which thread steps which episode.
 The threads share the episodes dynamically: each takes the next episode not yet taken
 (an atomic counter) until none is left. A step's cost is heavy-tailed (most moves touch
 nothing, a fall takes a hundred times longer), so a static split leaves one thread waiting
-on the other.
+on the other. The episodes are taken costliest first, by what their last step cost (the
+processor's cycle counter): a costly step is most often followed by another (a hand pressing
+on the object goes on pressing), and taken last it would leave the other threads idle. That
+order is a schedule only; no result depends on it.
 
 The episodes' arrays are stacked: row ``i`` of each is episode ``i``'s, its contacts padded
 to the buffers' length with their count beside them, its model the ``i``-th of a typed list.
@@ -14,6 +17,7 @@ to the buffers' length with their count beside them, its model the ``i``-th of a
 
 from __future__ import annotations
 
+import llvmlite.ir as llvmir
 import numpy as np
 from numba import njit, prange, types
 from numba.core import cgutils
@@ -36,6 +40,20 @@ def take_next(typingctx, counter):
         pointer = cgutils.get_item_pointer(context, builder, array_type, array, [first])
         one = context.get_constant(types.int64, 1)
         return builder.atomic_rmw("add", pointer, one, "monotonic")
+
+    return sig, codegen
+
+
+@intrinsic
+def cycles(typingctx):
+    """The processor's cycle counter (LLVM's ``readcyclecounter``; 0 where the processor has
+    none): what a step cost, for the order of the next."""
+    sig = types.int64()
+
+    def codegen(context, builder, signature, args):
+        fnty = llvmir.FunctionType(llvmir.IntType(64), [])
+        counter = cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
+        return builder.call(counter, [])
 
     return sig, codegen
 
@@ -101,7 +119,7 @@ def thread_buffers(settings, low, high, consts, q, h, keys, rows, an, ep, obs, a
 @njit(cache=CACHE, parallel=True)
 def step_batch(
     models, consts, settings, q, h, keys, rows, counts, an, ep, obs, low, high, actions,
-    seen, info, status, threads,
+    seen, info, status, threads, cost,
 ) -> None:  # fmt: skip
     """One step of every episode: row ``i`` of ``q``, ``h``, ``keys``/``rows`` (the first
     ``counts[i]``), ``an``, ``ep`` and ``obs`` moves on by ``actions[i]``, its observation
@@ -110,17 +128,22 @@ def step_batch(
     where the state reached has more contacts than the buffers hold; where it is not ``OK``
     the episode's rows are left as they were, for Python to take the step over. ``threads``:
     the threads numba runs the call on (``numba.get_num_threads()``, which compiled code
-    could read only at the cost of numba's on-disk cache)."""
+    could read only at the cost of numba's on-disk cache). ``cost[i]``: the cycles episode
+    ``i``'s last step took, the order of this one's (costliest first), updated."""
     n = q.shape[0]
     counter = np.zeros(1, dtype=np.int64)
+    order = np.argsort(-cost, kind="mergesort")
     for _ in prange(min(threads, n)):
         mine = thread_buffers(settings, low, high, consts, q, h, keys, rows, an, ep, obs,
                               actions, info)  # fmt: skip
         while True:
-            i = take_next(counter)
-            if i >= n:
+            k = take_next(counter)
+            if k >= n:
                 break
+            i = order[k]
+            start = cycles()
             step_one(
-                np.int64(i), models, consts, q, h, keys, rows, counts, an, ep, obs, actions,
-                seen, info, status, mine,
+                i, models, consts, q, h, keys, rows, counts, an, ep, obs, actions, seen, info,
+                status, mine,
             )  # fmt: skip
+            cost[i] = cycles() - start

@@ -107,10 +107,13 @@ def test_make_vec_declares_its_autoreset_and_spaces() -> None:
     assert type(sync).__name__ == "SyncVectorEnv"
 
 
-def test_results_do_not_depend_on_the_threads() -> None:
+def test_results_do_not_depend_on_the_threads_nor_the_schedule() -> None:
+    """One thread, two, and two taking the episodes in an order drawn at random each step
+    (the batch orders them by their last step's cost, which varies from run to run)."""
     kwargs = {"time_limit": 30, "shape_pool": 6}
     runs = []
-    for threads in (1, 2):
+    order = np.random.default_rng(4)
+    for threads, scrambled in ((1, False), (2, False), (2, True)):
         venv = gym.make_vec(
             "FrictionlessGraspRandomShapes-v0", num_envs=5, threads=threads, **kwargs
         )
@@ -118,11 +121,14 @@ def test_results_do_not_depend_on_the_threads() -> None:
         obs, _ = venv.reset(seed=3)
         out = [obs]
         for a in acts:
+            if scrambled:
+                venv.unwrapped._cost[:] = order.permutation(5)
             obs, reward, terminated, truncated, _ = venv.step(a)
             out += [obs, reward, terminated, truncated]
         runs.append(out)
-    for a, b in zip(*runs, strict=True):
-        np.testing.assert_array_equal(a, b)
+    for run in runs[1:]:
+        for a, b in zip(runs[0], run, strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 def test_a_step_python_takes_over_matches_the_single_env() -> None:
