@@ -1,8 +1,10 @@
 """Batched env throughput: env steps/s of ``gymnasium.make_vec(env_id, num_envs=N)`` (the
 batched env, one compiled call per step) against CartPole-v1's ``SyncVectorEnv`` and its own
 numpy-batched vector env, measured in the same run; against N (1 to 256) and threads (1, 2);
-the cost of a reset; where the time of a batched step goes; what its moves cost, by kind;
-and what the parts of a move that touches the object cost.
+the cost of a reset; where the time of a batched step goes; how the threads share a step
+(the episodes' work on one thread and on all, and the share of the threads' time it fills,
+taken costliest first or in index order); what its moves cost, by kind; and what the parts
+of a move that touches the object cost.
 
 Random actions (uniform, drawn in bulk from a seeded generator), resets included. Random
 shapes are drawn from a shape pool (``shape_pool``, prepared before timing: its entries are
@@ -26,6 +28,7 @@ from numba import njit
 import grasp_env
 from benchmarks.common import headless, page_main, table, write
 from grasp_env.kernel import step as kernel
+from grasp_env.kernel.batch import cycles
 from grasp_env.sim import contact_sets, motion, move
 from grasp_env.sim.fall import touching
 from grasp_env.sim.increment import newton
@@ -39,6 +42,8 @@ TARGETS = (
     ("FrictionlessGrasp-v0", "CartPole-v1 SyncVectorEnv", 2.0),
     ("FrictionlessGraspLift-v0", "CartPole-v1 SyncVectorEnv", 0.5),
 )
+#: Untimed steps before a timed run of steps.
+WARM_UP = 10
 #: Ratios reported without a verdict: (id, baseline).
 RATIOS = (("FrictionlessGrasp-v0", "CartPole-v1 vector env"),)
 
@@ -146,6 +151,64 @@ def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, f
         vector.Episode.advance = real_advance
     parts["rest"] = total - sum(parts.values())
     return {k: v / steps for k, v in parts.items()} | {"steps Python took over": fallbacks}
+
+
+@njit
+def _cycle_counter() -> int:
+    return cycles()
+
+
+def cycles_per_second(seconds: float = 0.2) -> float:
+    """The rate of the processor's cycle counter (the batch's measure of a step's cost)."""
+    first, start = _cycle_counter(), time.perf_counter()
+    time.sleep(seconds)
+    return (_cycle_counter() - first) / (time.perf_counter() - start)
+
+
+def thread_use(env_id: str, n: int, steps: int, pool: int = POOL) -> list[list]:
+    """The same ``steps`` random-action steps of ``n`` envs (the same states: no result
+    depends on the threads or the order) on one thread and on all, episodes taken
+    costliest first or in index order (``cost`` zeroed before each step): the compiled
+    call's time per step, the episodes' own work (the sum of their step costs), and the
+    share of the threads' time it fills."""
+    import grasp_env.envs.vector as vector
+
+    rate_ = cycles_per_second()
+    threads_max = numba.config.NUMBA_NUM_THREADS
+    rows = []
+    for threads, order in ((1, "costliest first"), (threads_max, "index order"),
+                           (threads_max, "costliest first")):  # fmt: skip
+        venv = make(env_id, n, threads, pool)
+        rng = np.random.default_rng(0)
+        space = venv.single_action_space
+        draws = rng.uniform(space.low, space.high, (steps, n, *space.shape)).astype(np.float32)
+        venv.reset(seed=0)
+        for a in draws[:WARM_UP]:
+            venv.step(a)
+        wall, work = 0.0, 0
+        real_batch = vector.step_batch
+
+        def timed_batch(*args, real_batch=real_batch):
+            nonlocal wall
+            start = time.perf_counter()
+            real_batch(*args)
+            wall += time.perf_counter() - start
+
+        vector.step_batch = timed_batch
+        try:
+            for a in draws[WARM_UP:]:
+                if order == "index order":
+                    venv._cost[:] = 0
+                venv.step(a)
+                work += int(venv._cost.sum())
+        finally:
+            vector.step_batch = real_batch
+        seconds = work / rate_
+        timed = steps - WARM_UP
+        per_step, busy = 1e3 * seconds / timed, seconds / (threads * wall)
+        rows.append([env_id, threads, order, f"{1e3 * wall / timed:.3f}", f"{per_step:.3f}",
+                     f"{busy:.0%}"])  # fmt: skip
+    return rows
 
 
 @njit
@@ -400,6 +463,24 @@ def run(
             for k, v in parts.items()
         )
         lines.append(f"- {env_id}: {cells}")
+    thread_steps = 50 if quick else 400
+    lines += [
+        "",
+        "## The threads (64 envs, per step of all 64)",
+        "",
+        f"The same {thread_steps} random-action steps on one thread and on "
+        f"{threads_max}, the episodes taken costliest first (by their last step's cost, as "
+        "the batch does) or in index order. `episodes' work` is the sum of the episodes' "
+        "step costs (the processor's cycle counter, in ms): on more threads it grows where "
+        "the threads slow each other down (shared caches and memory, the allocator); "
+        "`threads busy` is the share of the call's time the threads spend on episodes, the "
+        "rest waiting for the last episode of the step and starting the threads.",
+        "",
+        *table(
+            ["env", "threads", "order", "compiled call ms", "episodes' work ms", "threads busy"],
+            [row for env_id in ids for row in thread_use(env_id, 64, thread_steps, pool)],
+        ),
+    ]
     moves = moves or (500 if quick else 4000)
     lines += [
         "",

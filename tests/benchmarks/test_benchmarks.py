@@ -7,6 +7,7 @@ import json
 import platform
 from pathlib import Path
 
+import numba
 import pytest
 
 from benchmarks import (
@@ -80,6 +81,17 @@ def test_move_costs_put_each_move_in_one_kind():
     assert all(row[2] == row[1] / 40 for row in rows)
     assert sum(row[3] for row in rows) == pytest.approx(1.0)
     assert all(row[4] > 0.0 for row in rows)
+
+
+def test_thread_use_runs_the_same_steps_in_each_set_up():
+    """One thread and all, both orders; every set-up does work (the cycle counter runs)."""
+    rows = batched.thread_use("FrictionlessGrasp-v0", 4, batched.WARM_UP + 5, pool=2)
+    threads = numba.config.NUMBA_NUM_THREADS
+    assert [row[1:3] for row in rows] == [
+        [1, "costliest first"], [threads, "index order"], [threads, "costliest first"]
+    ]  # fmt: skip
+    assert batched.cycles_per_second(0.01) > 0.0
+    assert all(float(row[4]) > 0.0 for row in rows)
 
 
 def test_profile_baseline_columns(tmp_path):
