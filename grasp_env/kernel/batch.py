@@ -7,15 +7,17 @@ The threads share the episodes dynamically: each takes the next episode not yet 
 (an atomic counter) until none is left. A step's cost is heavy-tailed (most moves touch
 nothing, a fall takes a hundred times longer), so a static split leaves one thread waiting
 on the other. The episodes are taken costliest first, by what their last step cost (the
-processor's cycle counter): a costly step is most often followed by another (a hand pressing
-on the object goes on pressing), and taken last it would leave the other threads idle. That
-order is a schedule only; no result depends on it.
+processor's cycle counter, where it has one): a costly step is most often followed by
+another (a hand pressing on the object goes on pressing), and taken last it would leave the
+other threads idle. That order is a schedule only; no result depends on it.
 
 The episodes' arrays are stacked: row ``i`` of each is episode ``i``'s, its contacts padded
 to the buffers' length with their count beside them, its model the ``i``-th of a typed list.
 """
 
 from __future__ import annotations
+
+import platform
 
 import llvmlite.ir as llvmir
 import numpy as np
@@ -44,13 +46,21 @@ def take_next(typingctx, counter):
     return sig, codegen
 
 
+#: Whether the processor has a cycle counter user code may read (x86's time-stamp counter;
+#: elsewhere LLVM's ``readcyclecounter`` may read a register that traps or reads 0).
+HAS_CYCLE_COUNTER = platform.machine().lower() in ("x86_64", "amd64", "i386", "i686")
+
+
 @intrinsic
 def cycles(typingctx):
-    """The processor's cycle counter (LLVM's ``readcyclecounter``; 0 where the processor has
-    none): what a step cost, for the order of the next."""
+    """The processor's cycle counter (LLVM's ``readcyclecounter``; 0 without
+    :data:`HAS_CYCLE_COUNTER`, and the episodes go in index order): what a step cost, for the
+    order of the next."""
     sig = types.int64()
 
     def codegen(context, builder, signature, args):
+        if not HAS_CYCLE_COUNTER:
+            return context.get_constant(types.int64, 0)
         fnty = llvmir.FunctionType(llvmir.IntType(64), [])
         counter = cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
         return builder.call(counter, [])

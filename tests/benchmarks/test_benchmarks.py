@@ -25,6 +25,7 @@ from benchmarks import (
     work_precision,
 )
 from benchmarks.__main__ import main as run_suite
+from grasp_env.kernel.batch import HAS_CYCLE_COUNTER
 
 
 @pytest.mark.parametrize(
@@ -84,14 +85,16 @@ def test_move_costs_put_each_move_in_one_kind():
 
 
 def test_thread_use_runs_the_same_steps_in_each_set_up():
-    """One thread and all, both orders; every set-up does work (the cycle counter runs)."""
+    """One thread and all, both orders; every set-up does work where the processor has a
+    cycle counter (elsewhere the batch reads 0 and keeps the index order)."""
     rows = batched.thread_use("FrictionlessGrasp-v0", 4, batched.WARM_UP + 5, pool=2)
     threads = numba.config.NUMBA_NUM_THREADS
     assert [row[1:3] for row in rows] == [
         [1, "costliest first"], [threads, "index order"], [threads, "costliest first"]
     ]  # fmt: skip
-    assert batched.cycles_per_second(0.01) > 0.0
-    assert all(float(row[4]) > 0.0 for row in rows)
+    if HAS_CYCLE_COUNTER:
+        assert batched.cycles_per_second(0.01) > 0.0
+        assert all(float(row[4]) > 0.0 for row in rows)
 
 
 def test_profile_baseline_columns(tmp_path):

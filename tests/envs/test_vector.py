@@ -131,6 +131,21 @@ def test_results_do_not_depend_on_the_threads_nor_the_schedule() -> None:
             np.testing.assert_array_equal(a, b)
 
 
+def test_the_schedule_reads_no_counter_where_the_processor_has_none(monkeypatch) -> None:
+    """Without a cycle counter user code may read, every cost is 0 (the index order)."""
+    from numba import njit
+
+    from grasp_env.kernel import batch
+
+    monkeypatch.setattr(batch, "HAS_CYCLE_COUNTER", False)
+
+    @njit(cache=False)
+    def read():
+        return batch.cycles()
+
+    assert read() == 0
+
+
 def test_a_step_python_takes_over_matches_the_single_env() -> None:
     """Where the compiled move gives up (here a work limit of one pose solve in sub-env 1),
     Python takes the step over as the single env does: the same ``sim_error`` end, and the
