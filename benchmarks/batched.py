@@ -16,6 +16,7 @@ Usage: ``python -m benchmarks.batched [--quick]``
 
 from __future__ import annotations
 
+import contextlib
 import statistics
 import time
 from pathlib import Path
@@ -72,23 +73,50 @@ def prepare_pool(venv) -> None:
 
 
 def rate(venv: gym.vector.VectorEnv, budget: float, seed: int) -> float:
-    """Env steps/s of random actions for ``budget`` seconds (after 10 untimed steps)."""
-    rng = np.random.default_rng(seed)
-    space = venv.single_action_space
-    n = venv.num_envs
+    """Env steps/s of random actions for ``budget`` seconds (after ``WARM_UP`` untimed
+    steps)."""
+    draws = random_actions(venv, 4096, seed)
     venv.reset(seed=seed)
-    if isinstance(space, gym.spaces.Discrete):
-        draws = rng.integers(space.n, size=(4096, n))
-    else:
-        draws = rng.uniform(space.low, space.high, (4096, n, *space.shape)).astype(np.float32)
-    for t in range(10):
+    for t in range(WARM_UP):
         venv.step(draws[t])
     steps, start = 0, time.perf_counter()
     while time.perf_counter() - start < budget:
         for _ in range(16):
             venv.step(draws[steps % len(draws)])
             steps += 1
-    return n * steps / (time.perf_counter() - start)
+    return venv.num_envs * steps / (time.perf_counter() - start)
+
+
+def random_actions(venv: gym.vector.VectorEnv, steps: int, seed: int = 0) -> np.ndarray:
+    """``steps`` batches of uniform random actions for ``venv``, drawn from ``seed``."""
+    rng = np.random.default_rng(seed)
+    space, n = venv.single_action_space, venv.num_envs
+    if isinstance(space, gym.spaces.Discrete):
+        return rng.integers(space.n, size=(steps, n))
+    return rng.uniform(space.low, space.high, (steps, n, *space.shape)).astype(np.float32)
+
+
+@contextlib.contextmanager
+def timing(owner, name: str, seconds: dict, key: str):
+    """Within the block, add the wall time of every call of ``owner.name`` (a module's
+    function or a class's method) to ``seconds[key]``; ``owner`` is restored after."""
+    real, own = getattr(owner, name), vars(owner).get(name)
+
+    def timed(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return real(*args, **kwargs)
+        finally:
+            seconds[key] += time.perf_counter() - start
+
+    setattr(owner, name, timed)
+    try:
+        yield
+    finally:
+        if own is not None:
+            setattr(owner, name, own)
+        else:
+            delattr(owner, name)
 
 
 def reset_times(env_id: str, resets: int, pool: int = POOL) -> list[float]:
@@ -110,45 +138,20 @@ def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, f
     import grasp_env.envs.vector as vector
 
     venv = make(env_id, n, threads=1, pool=pool)
-    rng = np.random.default_rng(0)
-    space = venv.single_action_space
-    draws = rng.uniform(space.low, space.high, (steps, n, *space.shape)).astype(np.float32)
+    draws = random_actions(venv, steps)
     venv.reset(seed=0)
     parts = {"compiled step": 0.0, "resets": 0.0, "Python's steps": 0.0}
-    real_batch, real_reset = vector.step_batch, type(venv.envs[0]).reset
-    real_advance = vector.Episode.advance
-
-    def timed_batch(*args):
-        start = time.perf_counter()
-        real_batch(*args)
-        parts["compiled step"] += time.perf_counter() - start
-
-    def timed_reset(self, **kwargs):
-        start = time.perf_counter()
-        out = real_reset(self, **kwargs)
-        parts["resets"] += time.perf_counter() - start
-        return out
-
-    def timed_advance(self, *args):
-        start = time.perf_counter()
-        out = real_advance(self, *args)
-        parts["Python's steps"] += time.perf_counter() - start
-        return out
-
-    vector.step_batch = timed_batch
-    type(venv.envs[0]).reset = timed_reset
-    vector.Episode.advance = timed_advance
     fallbacks = 0
-    try:
+    with (
+        timing(vector, "step_batch", parts, "compiled step"),
+        timing(type(venv.envs[0]), "reset", parts, "resets"),
+        timing(vector.Episode, "advance", parts, "Python's steps"),
+    ):
         start = time.perf_counter()
         for a in draws:
             venv.step(a)
             fallbacks += int((venv._status != kernel.OK).sum())
         total = time.perf_counter() - start
-    finally:
-        vector.step_batch = real_batch
-        type(venv.envs[0]).reset = real_reset
-        vector.Episode.advance = real_advance
     parts["rest"] = total - sum(parts.values())
     return {k: v / steps for k, v in parts.items()} | {"steps Python took over": fallbacks}
 
@@ -179,30 +182,18 @@ def thread_use(env_id: str, n: int, steps: int, pool: int = POOL) -> list[list]:
     for threads, order in ((1, "costliest first"), (threads_max, "index order"),
                            (threads_max, "costliest first")):  # fmt: skip
         venv = make(env_id, n, threads, pool)
-        rng = np.random.default_rng(0)
-        space = venv.single_action_space
-        draws = rng.uniform(space.low, space.high, (steps, n, *space.shape)).astype(np.float32)
+        draws = random_actions(venv, steps)
         venv.reset(seed=0)
         for a in draws[:WARM_UP]:
             venv.step(a)
-        wall, work = 0.0, 0
-        real_batch = vector.step_batch
-
-        def timed_batch(*args, real_batch=real_batch):
-            nonlocal wall
-            start = time.perf_counter()
-            real_batch(*args)
-            wall += time.perf_counter() - start
-
-        vector.step_batch = timed_batch
-        try:
+        calls, work = {"compiled call": 0.0}, 0
+        with timing(vector, "step_batch", calls, "compiled call"):
             for a in draws[WARM_UP:]:
                 if order == "index order":
                     venv._cost[:] = 0
                 venv.step(a)
                 work += int(venv._cost.sum())
-        finally:
-            vector.step_batch = real_batch
+        wall = calls["compiled call"]
         seconds = work / rate_
         timed = steps - WARM_UP
         per_step, busy = 1e3 * seconds / timed, seconds / (threads * wall)

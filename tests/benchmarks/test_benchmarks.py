@@ -5,9 +5,12 @@ No timing assertions: the numbers of a tiny run on a shared machine mean nothing
 
 import json
 import platform
+import types
 from pathlib import Path
 
+import gymnasium as gym
 import numba
+import numpy as np
 import pytest
 
 from benchmarks import (
@@ -95,6 +98,45 @@ def test_thread_use_runs_the_same_steps_in_each_set_up():
     if HAS_CYCLE_COUNTER:
         assert batched.cycles_per_second(0.01) > 0.0
         assert all(float(row[4]) > 0.0 for row in rows)
+
+
+def test_timing_adds_each_calls_time_and_restores_what_it_wrapped():
+    """A class's inherited method and a module's function: every call counted (an exception
+    included), its result returned, the owner as it was after the block."""
+
+    class Base:
+        def f(self, x):
+            return 2 * x
+
+    class Child(Base):
+        pass
+
+    module = types.ModuleType("module")
+
+    def g(x):
+        raise KeyError(x)
+
+    module.g = g
+    seconds = {"f": 0.0, "g": 0.0}
+    child = Child()
+    with batched.timing(Child, "f", seconds, "f"), batched.timing(module, "g", seconds, "g"):
+        assert child.f(3) == 6
+        with pytest.raises(KeyError):
+            module.g(1)
+    assert seconds["f"] > 0.0 and seconds["g"] > 0.0
+    assert "f" not in vars(Child) and Child.f is Base.f
+    assert module.g is g
+
+
+def test_random_actions_are_seeded_draws_within_the_space():
+    venv = batched.make("FrictionlessGrasp-v0", 3, pool=2)
+    a, b = batched.random_actions(venv, 5, seed=1), batched.random_actions(venv, 5, seed=1)
+    space = venv.single_action_space
+    assert a.shape == (5, 3, *space.shape) and np.array_equal(a, b)
+    assert np.all(a >= space.low) and np.all(a <= space.high)
+    assert not np.array_equal(a, batched.random_actions(venv, 5, seed=2))
+    cartpole = gym.make_vec("CartPole-v1", num_envs=2, vectorization_mode="sync")
+    assert batched.random_actions(cartpole, 4).shape == (4, 2)
 
 
 def test_profile_baseline_columns(tmp_path):
