@@ -31,7 +31,7 @@ import numpy as np
 from grasp_env.arguments import integer, number, real_vector
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
-from grasp_env.core.scene import Scene
+from grasp_env.core.scene import MAX_ANGLE, Scene
 from grasp_env.core.scene_loading import load_scene
 from grasp_env.core.state import (
     ContactKey,
@@ -58,6 +58,8 @@ CONTACT_TOL_RANGE = (1e-11, 1e-2)
 MAX_WORK = 10**9
 
 _NO_KEYS = np.zeros((0, 4), dtype=np.int64)
+#: The spacing of doubles at 1.
+EPS = float(np.finfo(float).eps)
 
 
 class Simulator:
@@ -192,24 +194,40 @@ class Simulator:
         """State for a given object pose and hand configuration, after any fall to rest.
 
         Raises:
-            ValueError: the fingers outside their joint limits, or the object or the hand
-                entering the support or each other by more than the contact tolerance (the
-                simulator moves bodies that touch; it does not separate overlapping ones).
+            ValueError: a start :meth:`check_start` refuses.
         """
         q = real_vector(object_pose, "object_pose", 3)
         h = real_vector(hand, "hand", 5)
-        low, high = self.scene.joint_limits.T
-        if np.any(h[3:] < low) or np.any(h[3:] > high):
-            raise ValueError(
-                f"hand: finger angles {h[3:].tolist()} outside the joint limits "
-                f"{self.scene.joint_limits.tolist()}"
-            )
-        problem = kin.hand_placement_problem(self.scene, q, h, self.tol)
-        if problem:
-            raise ValueError(f"object_pose {q.tolist()} with hand {h.tolist()}: {problem}")
+        self.check_start(q, h)
         self._solves[0] = 0
         q, log = _compiled(move.settle, self.model, q, h, self._solves)
         return self._make_state(q, h, _events(log))
+
+    def check_start(
+        self, object_pose: np.ndarray, hand: np.ndarray, names: tuple = ("object_pose", "hand")
+    ) -> None:
+        """Refuse (``ValueError`` naming ``names``) a start the simulator does not move from:
+        the object's or the palm's angle beyond 2 pi in magnitude (the scene schema's bound),
+        the fingers outside their joint limits, or the object or the hand entering the
+        support or each other by more than the contact tolerance (the simulator moves bodies
+        that touch; it does not separate overlapping ones)."""
+        q_name, h_name = names
+        for name, angle in ((f"{q_name}[2]", object_pose[2]), (f"{h_name}[2]", hand[2])):
+            if not abs(angle) <= MAX_ANGLE:
+                raise ValueError(
+                    f"{name} must be an angle within [-2 pi, 2 pi], got {float(angle)!r}"
+                )
+        low, high = self.scene.joint_limits.T
+        if np.any(hand[3:] < low) or np.any(hand[3:] > high):
+            raise ValueError(
+                f"{h_name}: finger angles {hand[3:].tolist()} outside the joint limits "
+                f"{self.scene.joint_limits.tolist()}"
+            )
+        problem = kin.hand_placement_problem(self.scene, object_pose, hand, self.tol)
+        if problem:
+            raise ValueError(
+                f"{q_name} {object_pose.tolist()} with {h_name} {hand.tolist()}: {problem}"
+            )
 
     def move_hand(
         self,
@@ -231,16 +249,21 @@ class Simulator:
 
         Raises:
             TypeError: ``state`` is not a :class:`~grasp_env.core.state.State`.
-            ValueError: ``state`` is of another scene (a scene loaded again is another one).
+            ValueError: ``state`` is of another scene (a scene loaded again is another one);
+                a state built by hand that :meth:`check_start` refuses; a palm target farther
+                from the palm than :attr:`max_travel`.
             WorkLimitError: the move needs more than ``max_solves`` pose solves (or
                 ``max_iterations`` increments, or stalls).
             SimulationError: a solve failed, and again on the reference LP path with smaller
                 increments.
         """
         own_state(state, self.scene)
+        if state._by_hand:
+            self.check_start(state.object_pose, state.hand, ("state.object_pose", "state.hand"))
         target = state.hand.tolist()
         if palm is not None:
             target[:3] = _finite_floats(palm, 3, "palm")
+            self._check_travel(state.hand, target)
         joint_limit = False
         if fingers is not None:  # clipped to the joint limits
             f1, f2 = _finite_floats(fingers, 2, "fingers")
@@ -248,10 +271,32 @@ class Simulator:
             target[3], target[4] = min(max(f1, low1), high1), min(max(f2, low2), high2)
             joint_limit = target[3] != f1 or target[4] != f2
         known = self._keys_of(state)
-        out, log, keys, rows = self.move_arrays(
-            state.object_pose, state.hand, np.array(target), known
+        out, log, keys, rows = self.move_arrays(  # the compiled core takes writeable arrays
+            state.object_pose.copy(), state.hand.copy(), np.array(target), known
         )
         return self.state_from_move(state, out, log, keys, rows, joint_limit)
+
+    @property
+    def max_travel(self) -> float:
+        """How far a move may take the palm, in palm widths (its position) or radians (its
+        angle): the contact tolerance over 16 double-precision roundings. A move is followed
+        along a path parameter in [0, 1], whose rounding moves the hand by the move's length
+        times 2.2e-16; beyond this length that exceeds the contact tolerance, and the move's
+        events could not be located (1e-9 / 3.6e-15, about 2.8e5 palm widths, at the default
+        tolerance)."""
+        return self.tol / self.scene.palm.width / (16 * EPS)
+
+    def _check_travel(self, hand: np.ndarray, target: list) -> None:
+        """Refuse (``ValueError`` naming ``palm``) a palm target beyond :attr:`max_travel`."""
+        w = self.scene.palm.width
+        travel = max(abs(target[0] - hand[0]) / w, abs(target[1] - hand[1]) / w,
+                     abs(target[2] - hand[2]))  # fmt: skip
+        if travel > self.max_travel:
+            raise ValueError(
+                f"palm target {target[:3]} lies {travel:.3g} palm widths (or radians) from the "
+                f"palm {hand[:3].tolist()}, farther than a move can resolve at the contact "
+                f"tolerance ({self.max_travel:.3g})"
+            )
 
     def _keys_of(self, state: State) -> np.ndarray:
         """The contact keys of ``state`` as the compiled core takes them."""

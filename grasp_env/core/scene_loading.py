@@ -157,7 +157,7 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
         names = bundled_scenes()
         if spec not in names:
             raise SceneError(
-                f"not a bundled scene; bundled: {names} (a file is read "
+                f"not a bundled scene: {spec!r}; bundled: {names} (a file is read "
                 f"only from a path with a separator or a .yaml/.yml suffix, e.g. './{spec}')"
             )
         path = SCENES_DIR.joinpath(f"{spec}.yaml")

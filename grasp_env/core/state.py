@@ -85,8 +85,13 @@ class Contact:
         normal = real_vector(self.normal, "contact normal", 2)
         if abs(math.hypot(*normal) - 1.0) > UNIT_TOL:
             raise ValueError(f"contact normal must be a unit vector, got {normal.tolist()}")
-        object.__setattr__(self, "point", point)
-        object.__setattr__(self, "normal", normal)
+        object.__setattr__(self, "point", read_only(point))
+        object.__setattr__(self, "normal", read_only(normal))
+
+    def __setstate__(self, fields: dict) -> None:
+        """Unpickled, as made: its arrays read-only."""
+        self.__dict__.update(fields, point=read_only(fields["point"]),
+                             normal=read_only(fields["normal"]))  # fmt: skip
 
     @property
     def key(self) -> ContactKey:
@@ -129,7 +134,8 @@ class Event:
 @dataclass(frozen=True, eq=False)
 class State:
     """Object pose, hand configuration and contacts (with forces) at rest (public API,
-    docs/conventions.md).
+    docs/conventions.md). A snapshot: its arrays and its contacts' are read-only, and a
+    state built by hand copies the arrays it is given.
 
     Attributes:
         scene: the scene this state belongs to.
@@ -155,21 +161,27 @@ class State:
     _arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(
         default=None, init=False, repr=False
     )
+    #: Whether the state was built by hand (its constructor ran), not made by a simulator:
+    #: a simulator checks such a state before it moves from it.
+    _by_hand: bool = field(default=False, init=False, repr=False)
 
     def __post_init__(self) -> None:
         """Check a state built by hand (the simulator fills in its own directly)."""
         if not isinstance(self.scene, Scene):
             raise TypeError(f"state scene must be a grasp_env.Scene, got {short(self.scene)}")
-        for name, size in (("object_pose", 3), ("hand", 5)):
-            value = getattr(self, name)
-            checked = real_vector(value, name, size)
-            if type(value) is not np.ndarray or value.dtype != np.float64:
-                object.__setattr__(self, name, checked)  # else kept: the same array
+        for name, size in (("object_pose", 3), ("hand", 5)):  # copies, as the state's own
+            object.__setattr__(self, name, read_only(real_vector(getattr(self, name), name, size)))
         contacts = tuple(self.contacts)
         for c in contacts:
             if not isinstance(c, Contact):
                 raise TypeError(f"state contacts must be grasp_env.Contact, got {short(c)}")
         object.__setattr__(self, "contacts", contacts)
+        object.__setattr__(self, "_by_hand", True)
+
+    def __setstate__(self, fields: dict) -> None:
+        """Unpickled, as made: its arrays read-only."""
+        self.__dict__.update(fields, object_pose=read_only(fields["object_pose"]),
+                             hand=read_only(fields["hand"]))  # fmt: skip
 
     @property
     def on_support(self) -> bool:
@@ -222,8 +234,8 @@ def new_state(
     every move."""
     state = _new_object(State)
     state.__dict__.update(
-        scene=scene, object_pose=object_pose, hand=hand, contacts=contacts, jammed=jammed,
-        hand_blocked=hand_blocked, events=events,
+        scene=scene, object_pose=read_only(object_pose), hand=read_only(hand),
+        contacts=contacts, jammed=jammed, hand_blocked=hand_blocked, events=events,
     )  # fmt: skip
     return state
 
@@ -237,6 +249,7 @@ def contacts_from_arrays(
     filled in directly: a frozen dataclass's ``__init__`` sets each field through
     ``object.__setattr__``, and this runs at every simulated step."""
     out = []
+    points, normals = read_only(points), read_only(normals)  # each contact's rows: views
     for i, (body, kind, object_feature, hand_feature) in enumerate(keys):
         c = _new_object(Contact)
         c.__dict__.update(
@@ -249,6 +262,14 @@ def contacts_from_arrays(
 
 
 _new_object = object.__new__
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """A view of ``a`` that cannot be written to: a state and its contacts are snapshots
+    (``a`` itself stays writeable for its owner)."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
 
 
 def keep_contact_arrays(

@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from grasp_env.arguments import integer, real_vector
+from grasp_env.arguments import integer
 from grasp_env.core.scene import Scene
 from grasp_env.core.state import State
 from grasp_env.envs.checks import action_values, one_of
@@ -149,7 +149,8 @@ class GraspEnvBase(gym.Env):
         Raises:
             ValueError: a bad action (as :meth:`step`).
             TypeError: ``state`` is not a :class:`grasp_env.State`.
-            ValueError: ``state`` is of another scene than the current episode's.
+            ValueError: ``state`` is of another scene than the current episode's, or a state
+                built by hand that :meth:`grasp_env.Simulator.check_start` refuses.
             RuntimeError: called before the first :meth:`reset`.
             SimulationError, SolverError: where :meth:`step` would end the episode with
                 ``info["sim_error"]``.
@@ -159,7 +160,8 @@ class GraspEnvBase(gym.Env):
             raise RuntimeError("call reset() before simulate_action()")
         sim = self._episode.sim
         own_state(state, sim.scene)
-        real_vector(state.hand, "state.hand", 5)  # the move's target is made from it
+        if state._by_hand:  # a simulator's state needs no check
+            sim.check_start(state.object_pose, state.hand, ("state.object_pose", "state.hand"))
         if self.friction > 0.0 and self._episode.friction_jams(
             state_arrays(state), np.array(a), self._settings, self.friction
         ):

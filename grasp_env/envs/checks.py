@@ -12,7 +12,7 @@ import numpy as np
 
 from grasp_env.arguments import number, real_vector, short
 from grasp_env.core import kinematics as kin
-from grasp_env.core.scene import LENGTH_RANGE, Scene
+from grasp_env.core.scene import LENGTH_RANGE, MAX_ANGLE, Scene
 from grasp_env.core.scene_loading import load_scene
 from grasp_env.envs.shapes import DEFAULT_SHAPE_RANGES, hand_setup
 from grasp_env.envs.uncertainty import MAX_UNCERTAINTY, UNCERTAINTY_KEYS
@@ -160,7 +160,12 @@ def action_values(action: Any, size: int) -> list[float]:
 
 def batch_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     """A batch of actions as float64, refused (``ValueError`` naming ``actions``) unless it is
-    finite real numbers of ``shape`` (the kernel clips them into [-1, 1])."""
+    finite real numbers of ``shape`` (a masked array only with nothing masked; the kernel
+    clips them into [-1, 1])."""
+    if isinstance(actions, np.ma.MaskedArray):
+        if np.ma.is_masked(actions):
+            raise ValueError(f"actions must be real numbers of shape {shape}, got masked entries")
+        actions = actions.data
     actions = np.asarray(actions)
     if actions.shape != shape or actions.dtype.kind not in "fiu":
         raise ValueError(f"actions must be real numbers of shape {shape}, got {actions!r}")
@@ -241,12 +246,16 @@ def option_start(
     scene: Scene, opts: dict[str, Any], contact_tol: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The object pose and hand a start of checked reset options ``opts`` is settled from
-    (missing parts from the scene): refused with the object's centre or the palm outside the
-    palm workspace, the fingers outside their joint limits, or a body overlapping another or
-    the support."""
+    (missing parts from the scene): refused with the object's angle beyond 2 pi in magnitude,
+    its centre or the palm outside the palm workspace, the fingers outside their joint
+    limits, or a body overlapping another or the support."""
     pose = scene.object.start_pose.copy()
     if "object_pose" in opts:
         pose = opts["object_pose"]
+        if abs(pose[2]) > MAX_ANGLE:  # the scene schema's bound on angles
+            raise ValueError(
+                f"options['object_pose'] {pose.tolist()}: its angle must be within [-2 pi, 2 pi]"
+            )
         outside = workspace_problem(scene, pose[0], pose[1])
         if outside:  # a start the palm could reach, and a fall of bounded length
             raise ValueError(f"options['object_pose'] {pose.tolist()}: its centre {outside}")

@@ -58,6 +58,8 @@ _PLACEMENTS = {"preliftoff": centred_placement, "random": centred_placement,
 REWARD_TERMS = kernel.REWARD_TERMS
 #: Largest reward weight: a step's reward stays far from the float range.
 MAX_REWARD_WEIGHT = 1e6
+#: Largest ``shape_pool``: a pool entry is drawn as a 64-bit integer.
+MAX_POOL = 2**63
 #: Largest ``max_vertices`` (the observation has 3 entries per vertex).
 MAX_VERTICES = 1000
 
@@ -265,8 +267,8 @@ class FrictionlessGraspEnv(GraspEnvBase):
     * ``max_vertices``: observation padding of the object's vertices (12; at most 1000).
     * ``always_compute_grip``: also compute ``y*`` outside form closure (False: skipped).
     * ``hand_features``: append the hand features to the observation (False).
-    * ``shape_pool``: draw random shapes from a pool of this many (None: a new shape at every
-      reset); see Starting State.
+    * ``shape_pool``: draw random shapes from a pool of this many, at most 2**63 (None: a new
+      shape at every reset); see Starting State.
     * ``time_limit``: steps after which an episode is truncated (None: never; the registered
       ids: 200).
     * ``friction``: a Coulomb coefficient ``mu`` in [0, 1e6] at every contact that stops a
@@ -387,7 +389,9 @@ class FrictionlessGraspEnv(GraspEnvBase):
         self.shape_ranges = shape_ranges(shape_randomizer, self.max_vertices)
         self._shape_args = (self.shape_ranges, self._shape_problem)
         self._perturbation_args = (self.uncertainty, self._shape_problem)
-        self.shape_pool = None if shape_pool is None else integer(shape_pool, "shape_pool", 1)
+        self.shape_pool = (
+            None if shape_pool is None else integer(shape_pool, "shape_pool", 1, most=MAX_POOL)
+        )
         if self.shape_pool is not None and self.shape_ranges is None:
             raise ValueError(f"shape_pool={shape_pool!r} needs a shape_randomizer")
         if self.shape_ranges is not None:
@@ -429,6 +433,8 @@ class FrictionlessGraspEnv(GraspEnvBase):
         try:
             if isinstance(seed, bool | np.bool_):
                 raise gym.error.Error  # seeding would take it for 0 or 1
+            if isinstance(seed, np.integer):  # a number like a Python int, as everywhere
+                seed = int(seed)
             rng = self.np_random if seed is None else seeding.np_random(seed)[0]
         except gym.error.Error:
             raise ValueError(f"seed must be None or an int >= 0, got {short(seed)}") from None

@@ -27,7 +27,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numba import typed
 
-from grasp_env.arguments import integer
+from grasp_env.arguments import integer, short
 from grasp_env.envs.checks import batch_actions
 from grasp_env.envs.episode import REWARD_KEYS, Episode
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
@@ -171,12 +171,14 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         sub-env's reset."""
         if seed is None or (isinstance(seed, int | np.integer) and not isinstance(seed, bool)):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
+        elif isinstance(seed, list | tuple) or (isinstance(seed, np.ndarray) and seed.ndim == 1):
+            seeds = list(seed)  # each checked by its sub-env's reset
         else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(
-                    f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r}"
-                )
+            seeds = []
+        if len(seeds) != self.num_envs:
+            raise ValueError(
+                f"seed must be None, an int or a list of {self.num_envs} seeds, got {short(seed)}"
+            )
         kept = [
             (env._episode, env._np_random, env._np_random_seed,
              None if env._np_random is None else env._np_random.bit_generator.state)

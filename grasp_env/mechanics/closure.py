@@ -32,10 +32,10 @@ def V_ob(points_W: np.ndarray, normals_W: np.ndarray, com_W: np.ndarray) -> np.n
     Row i maps an object twist to the normal velocity of the object's material point at
     contact i: ``n_i . (v + omega k x r_i) = [n_i, r_i x n_i] . (v, omega)``.
     """
-    return constraint_matrix(
-        np.asarray(points_W, dtype=float).reshape(-1, 2),
-        np.asarray(normals_W, dtype=float).reshape(-1, 2),
-        np.asarray(com_W, dtype=float),
+    return constraint_matrix(  # copies: the compiled function takes writeable arrays
+        np.array(points_W, dtype=float).reshape(-1, 2),
+        np.array(normals_W, dtype=float).reshape(-1, 2),
+        np.array(com_W, dtype=float),
     )
 
 
@@ -160,7 +160,7 @@ def is_form_closure(state: State) -> bool:
     """
     require_state(state)
     points, normals, _ = state.contact_arrays()
-    com = np.asarray(state.object_pose, dtype=float)  # V_ob reads its x and y
+    com = state.object_pose.copy()  # V_ob reads its x and y (a state's arrays are read-only)
     return analysis.form_closure(points, normals, com, gyration_radius(state.scene))
 
 
@@ -214,7 +214,7 @@ def grip_objective(state: State) -> float:
     scene = state.scene
     W, L = scene.object_weight, scene.palm.width
     outcome, value = analysis.grip_objective(
-        p, n, b, np.asarray(state.object_pose, dtype=float), state.hand, L / 2.0, L, W,
+        p, n, b, state.object_pose.copy(), state.hand.copy(), L / 2.0, L, W,
         analysis.grip_constants(scene),
     )  # fmt: skip
     if outcome == analysis.GRIP_FOUND:

@@ -16,9 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from grasp_env.arguments import short
 from grasp_env.core import geometry as geo
 from grasp_env.core.scene import Scene
 from grasp_env.core.scene_validation import convex_polygon
+from grasp_env.errors import SceneError
 
 __all__ = ["object_vertices_W", "object_width", "width_direction"]
 
@@ -43,6 +45,12 @@ def object_vertices_W(scene_or_vertices: Scene | np.ndarray) -> np.ndarray:
     """
     if isinstance(scene_or_vertices, Scene):
         return np.array(scene_or_vertices.object.vertices_W0, dtype=float)
+    if not isinstance(scene_or_vertices, list | tuple | np.ndarray):
+        raise SceneError(
+            "scene_or_vertices must be a grasp_env.Scene or a list of at least 3 [x, y] "
+            f"points, got {short(scene_or_vertices)} (load a scene by name or path first: "
+            "grasp_env.load_scene)"
+        )
     return convex_polygon(scene_or_vertices, "scene_or_vertices")
 
 

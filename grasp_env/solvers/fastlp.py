@@ -145,13 +145,17 @@ def solve_velocity_lp(V: np.ndarray, xi: np.ndarray, c: np.ndarray) -> FastLPRes
     return FastLPResult(_STATUS[status], None, None, value, certificate)
 
 
+def _writeable(a: np.ndarray) -> np.ndarray:
+    return a if a.flags.writeable else a.copy()
+
+
 def _arrays(
     V: np.ndarray, xi: np.ndarray, c: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``V`` (n, 3), ``xi`` (n,) and ``c`` (3,) as contiguous float arrays for the kernel."""
-    V = np.ascontiguousarray(V, dtype=float)
-    xi = np.ascontiguousarray(xi, dtype=float)
-    c = np.ascontiguousarray(c, dtype=float)
+    """``V`` (n, 3), ``xi`` (n,) and ``c`` (3,) as contiguous, writeable float arrays for the
+    kernel (a read-only array, such as a state's, is copied: the compiled kernel takes one
+    type of array, and another would be compiled again)."""
+    V, xi, c = (_writeable(np.ascontiguousarray(a, dtype=float)) for a in (V, xi, c))
     if V.ndim != 2 or V.shape[1] != 3:
         V = V.reshape(-1, 3)
     if xi.ndim != 1:

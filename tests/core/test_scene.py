@@ -869,14 +869,16 @@ def test_infinite_torque_limits_are_accepted() -> None:
 
 
 def test_unknown_bundled_name_is_refused() -> None:
-    with pytest.raises(SceneError, match=r"^not a bundled scene") as info:
-        load_scene("fig14")  # callers name the value: "scene 'fig14': not a bundled scene"
+    with pytest.raises(SceneError, match=r"^not a bundled scene: 'fig14';") as info:
+        load_scene("fig14")
     assert all(name in str(info.value) for name in SCENE_FILES), "it lists the bundled scenes"
     assert isinstance(info.value, ValueError)
     import gymnasium as gym
 
-    with pytest.raises(ValueError, match=r"^scene 'fig14': not a bundled scene;"):
+    with pytest.raises(ValueError, match=r"^scene 'fig14': not a bundled scene: 'fig14';"):
         gym.make("FrictionlessGrasp-v0", scene="fig14")
+    with pytest.raises(SceneError, match=r"^not a bundled scene: '';"):
+        load_scene("")
 
 
 def test_a_non_convex_polygon_is_refused_at_the_vertex_at_fault() -> None:

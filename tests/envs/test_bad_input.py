@@ -129,6 +129,9 @@ KWARGS = [
     # shapes this large overlap the hand or put the palm above its workspace (y <= 3 w)
     ("randomizer_palm_outside", {"shape_randomizer": {"size": (5.0, 10.0)}},
      r"shape_randomizer", r"\(5\.0, 10\.0\).*no random shape"),
+    # a pool entry is drawn as a 64-bit integer
+    ("shape_pool_huge", {"shape_randomizer": {}, "shape_pool": 10**30}, r"shape_pool",
+     r"1000000000000000000000000000000"),
 ]  # fmt: skip
 
 OPTIONS = [
@@ -151,6 +154,11 @@ OPTIONS = [
      r"object enters the support"),
     ("object_pose_in_palm", {"object_pose": (0.015, 0.7, 0.0)}, r"object_pose",
      r"overlaps the object"),
+    # the scene schema's bound on angles: an angle this large has lost its precision
+    ("object_pose_angle_huge", {"object_pose": (0.015, 0.2, 1e12)},
+     r"options\['object_pose'\].*angle", r"1000000000000\.0"),
+    ("object_pose_angle_turns", {"object_pose": (0.015, 0.2, 7.0)},
+     r"options\['object_pose'\].*angle", r"7\.0"),
     ("scene_clockwise", {"scene": changed(("object", "vertices"), V[::-1])},
      r"object\.vertices", r"clockwise"),
     # Values that are not real numbers, on every key: refused, never parsed, cast or truncated.
@@ -183,6 +191,8 @@ SEEDS = [
     ("seed_string", "3", r"seed", r"'3'"),
     ("seed_complex", 3j, r"seed", r"3j"),
     ("seed_bool", True, r"seed", r"True"),
+    ("seed_numpy_negative", np.int64(-1), r"seed", r"-1"),
+    ("seed_numpy_bool", np.bool_(True), r"seed", r"True"),
 ]
 
 ACTIONS = [
@@ -284,6 +294,18 @@ def test_bad_seed_refused(case: str, seed: Any, field: str, value: str) -> None:
     env, twin = twin_envs()
     assert_refused(lambda: env.reset(seed=seed), field, value, ValueError)
     assert_same_after(env, twin)
+
+
+def test_numpy_integer_seeds_are_ints() -> None:
+    """A numpy integer seeds as the same Python int does (numbers are numbers, whatever
+    their type), in the single env and in the batched one, alone or in a list."""
+    env, twin = twin_envs()
+    np.testing.assert_array_equal(env.reset(seed=np.int64(3))[0], twin.reset(seed=3)[0])
+    venv, vtwin = (gym.make_vec("FrictionlessGrasp-v0", num_envs=2) for _ in range(2))
+    want = vtwin.reset(seed=5)[0]
+    np.testing.assert_array_equal(venv.reset(seed=np.int64(5))[0], want)
+    np.testing.assert_array_equal(venv.reset(seed=[np.int64(5), np.uint8(6)])[0], want)
+    np.testing.assert_array_equal(venv.reset(seed=np.array([5, 6]))[0], want)
 
 
 @pytest.mark.parametrize(("case", "action", "field", "value"), ACTIONS, ids=ids(ACTIONS))

@@ -182,6 +182,7 @@ def test_bad_actions_are_refused_and_change_nothing() -> None:
         np.zeros(2),
         np.array([["a", "b"], ["c", "d"]]),
         [[1.0, np.inf], [0.0, 0.0]],
+        np.ma.array(np.zeros((2, 2)), mask=[[1, 0], [0, 0]]),
     ]
     for actions_ in bad:
         with pytest.raises(ValueError, match="actions"):
@@ -215,6 +216,9 @@ def test_a_refused_reset_changes_no_sub_env() -> None:
         venv.reset(seed=[1, 2, -3])
     with pytest.raises(ValueError, match="seed"):
         venv.reset(seed=[1, 2])
+    for seed in (1.5, True, np.bool_(False), "7", np.zeros((3, 1), dtype=int), {1, 2, 3}):
+        with pytest.raises(ValueError, match=r"^seed must be None, an int or a list of 3"):
+            venv.reset(seed=seed)
     for x, y in zip(venv.step(a)[:4], twin.step(a)[:4], strict=True):
         np.testing.assert_array_equal(x, y)
     np.testing.assert_array_equal(venv.reset()[0], twin.reset()[0])

@@ -65,7 +65,13 @@ def test_touching_bodies_are_at_zero_distance() -> None:
     state = grasp_env.planning.centred_placement(sim)
     m = sim.model
     got = proximity.hand_features(
-        m.points, m.body, m.n_object, m.n_vertices, m.half, state.object_pose, state.hand
+        m.points,
+        m.body,
+        m.n_object,
+        m.n_vertices,
+        m.half,
+        state.object_pose.copy(),
+        state.hand.copy(),
     )
     touching = {c.body for c in state.contacts}
     for k, body in enumerate(("palm", "finger1", "finger2")):

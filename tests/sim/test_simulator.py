@@ -671,15 +671,22 @@ def test_simulator_states_are_the_constructors() -> None:
         state = sim.move_hand(state, fingers=state.finger_angles + np.array([dq, -dq]))
         names = [f.name for f in dataclasses.fields(State) if f.init]
         made = State(**{name: getattr(state, name) for name in names})
-        assert set(vars(made)) == set(vars(state)) - {"_arrays"}  # kept contact arrays
+        # the simulator's keeps its contact arrays; the constructor's says it was built
+        assert set(vars(made)) - {"_by_hand"} == set(vars(state)) - {"_arrays"}
+        assert made._by_hand and not state._by_hand
         for name in names:
-            assert getattr(made, name) is getattr(state, name)
+            if name in ("object_pose", "hand"):  # the constructor's copies
+                np.testing.assert_array_equal(getattr(made, name), getattr(state, name))
+            else:
+                assert getattr(made, name) is getattr(state, name)
         with pytest.raises(dataclasses.FrozenInstanceError):
             state.jammed = True
         copied = dataclasses.replace(state)
         assert copied.contacts is state.contacts and copied._arrays is None
         again = pickle.loads(pickle.dumps(state))
         np.testing.assert_array_equal(again.object_pose, state.object_pose)
+        arrays = [again.object_pose, again.hand, *(c.point for c in again.contacts)]
+        assert not any(a.flags.writeable for a in arrays) and not again._by_hand
         assert [c.key for c in again.contacts] == [c.key for c in state.contacts]
         assert repr(made) == repr(state)
 
@@ -1647,3 +1654,110 @@ def test_a_state_of_another_scene_is_not_moved() -> None:
         sim.move_hand(again, fingers=(-1.0, -2.1))
     with pytest.raises(TypeError, match=r"state must be a grasp_env\.State, got dict"):
         sim.move_hand({"hand": again.hand}, fingers=(-1.0, -2.1))
+
+
+# ---------------------------------------------------------------------------------------
+# States are snapshots; a state built by hand is checked before a move from it
+# ---------------------------------------------------------------------------------------
+
+
+def test_a_states_arrays_cannot_be_written() -> None:
+    """A simulator's states and their contacts, and a state built by hand (which copies the
+    arrays it is given: changing them afterwards changes nothing)."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    moved = sim.move_hand(start, fingers=(start.hand[3] + 0.5, start.hand[4] - 0.5))
+    for state in (start, moved):
+        arrays = [state.object_pose, state.hand]
+        arrays += [a for c in state.contacts for a in (c.point, c.normal)]
+        for a in arrays:
+            with pytest.raises(ValueError, match="read-only"):
+                a[0] = 1.0
+    pose, hand = start.object_pose.copy(), start.hand.copy()
+    built = State(sim.scene, pose, hand, start.contacts)
+    pose[0], hand[3] = 9.0, 9.0
+    np.testing.assert_array_equal(built.object_pose, start.object_pose)
+    np.testing.assert_array_equal(built.hand, start.hand)
+    with pytest.raises(ValueError, match="read-only"):
+        built.hand[3] = 1.0
+    points = moved.contact_arrays()[0]  # copies, the caller's to change
+    points[:] = 0.0
+    assert not np.array_equal(moved.contact_arrays()[0], points)
+
+
+def test_a_state_built_by_hand_moves_as_the_simulators_own() -> None:
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    built = State(sim.scene, start.object_pose, start.hand, start.contacts)
+    target = (start.hand[3] + 0.6, start.hand[4] - 0.6)
+    a, b = sim.move_hand(start, fingers=target), sim.move_hand(built, fingers=target)
+    np.testing.assert_array_equal(a.object_pose, b.object_pose)
+    np.testing.assert_array_equal(a.hand, b.hand)
+    assert [c.key for c in a.contacts] == [c.key for c in b.contacts]
+
+
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        ({"hand": (None, 0.2)}, r"state\.object_pose .* with state\.hand .*the palm overlaps"),
+        ({"hand": (3, 1.0)}, r"state\.hand: finger angles \[1\.0, .*outside the joint limits"),
+        ({"pose": (1, -0.05)}, r"the object enters the support"),
+        ({"pose": (2, 1e12)}, r"state\.object_pose\[2\] must be an angle .*1000000000000\.0"),
+        ({"hand": (2, -7.0)}, r"state\.hand\[2\] must be an angle .*-7\.0"),
+    ],
+)
+def test_a_state_built_by_hand_that_overlaps_is_not_moved(change, needle) -> None:
+    """The checks of :meth:`Simulator.settle`, through ``move_hand`` and the env's
+    ``simulate_action``; a valid move from the simulator's own state works afterwards."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    pose, hand = start.object_pose.copy(), start.hand.copy()
+    if "hand" in change:
+        i, value = change["hand"]
+        if i is None:  # the palm down into the object
+            hand[1] = pose[1]
+        else:
+            hand[i] = value
+    else:
+        i, value = change["pose"]
+        pose[i] = pose[i] + value if i == 1 else value
+    bad = State(sim.scene, pose, hand, ())
+    with pytest.raises(ValueError, match=needle):
+        sim.move_hand(bad, fingers=(hand[3] + 0.1, hand[4] - 0.1))
+    import gymnasium as gym
+
+    env = gym.make("FrictionlessGrasp-v0").unwrapped
+    env.reset(seed=0)
+    bad = State(env.state.scene, pose, hand, ())
+    with pytest.raises(ValueError, match=needle):
+        env.simulate_action(bad, [1.0, 1.0])
+    state = sim.move_hand(start, fingers=(start.hand[3] + 0.1, start.hand[4] - 0.1))
+    assert_invariants(state, tol_of(sim))
+
+
+def test_settle_refuses_angles_beyond_two_pi() -> None:
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    with pytest.raises(ValueError, match=r"^object_pose\[2\] must be an angle .* 7\.0"):
+        sim.settle(start.object_pose + np.array([0.0, 0.0, 7.0]), start.hand)
+    with pytest.raises(ValueError, match=r"^hand\[2\] must be an angle .* -6\.5"):
+        sim.settle(start.object_pose, start.hand + np.array([0.0, 0.0, -6.5, 0.0, 0.0]))
+
+
+@pytest.mark.parametrize("far", [1e6, 1e15, 1e20, -1e300])
+def test_a_palm_target_beyond_what_a_move_resolves_is_refused(far: float) -> None:
+    """A move's rounding along its path parameter (2.2e-16 of its length) must stay below
+    the contact tolerance: 16 roundings of the default 1e-9 palm widths allow 2.8e5 palm
+    widths (or radians); beyond, ``palm`` is refused where a move used to end jammed at
+    its start with no contact to jam it."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    assert sim.max_travel == pytest.approx(1e-9 / (16 * 2.220446049250313e-16))
+    x, y, th = start.hand[:3]
+    for palm in ((x + far, y, th), (x, y + abs(far), th), (x, y, th + far)):
+        with pytest.raises(ValueError, match=r"^palm target .* farther than a move can"):
+            sim.move_hand(start, palm=palm)
+    fine = Simulator(scene_of("fig13"), contact_tol=1e-6)
+    assert fine.max_travel == pytest.approx(1e3 * sim.max_travel)
+    state = sim.move_hand(start, palm=(x, y + 0.1, th))  # a move within it still runs
+    assert_invariants(state, tol_of(sim))
