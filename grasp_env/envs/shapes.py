@@ -81,7 +81,9 @@ def random_convex_polygon(
     gaps = rng.uniform(1.0, 3.0, n)
     angles = rng.uniform(0.0, 2 * math.pi) + 2 * math.pi * np.cumsum(gaps) / gaps.sum()
     ratio = rng.uniform(aspect[0], aspect[1])
-    v = np.stack([np.cos(angles), ratio * np.sin(angles)], axis=1)
+    # the C library's cosine and sine, one angle at a time: numpy's array versions differ in
+    # the last bit between processors (vectorized on some), and the shapes must not
+    v = np.array([(math.cos(a), ratio * math.sin(a)) for a in angles.tolist()])
     c = geo.polygon_centroid(v)
     d = geo.edge_vectors(v)
     length = geo.norms(d)

@@ -15,7 +15,7 @@ import pytest
 
 import grasp_env
 from grasp_env.core import geometry as geo
-from grasp_env.envs import ENV_ID, MAX_EPISODE_STEPS, REWARD_THRESHOLD, VECTOR_ENTRY_POINT
+from grasp_env.envs import ENV_ID, MAX_EPISODE_STEPS, REWARD_THRESHOLD, VECTOR_ENTRY_POINT, shapes
 from grasp_env.envs import frictionless_grasp as fg_module
 from grasp_env.envs.episode import Episode, episode_constants
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
@@ -959,3 +959,24 @@ def test_always_compute_grip_reports_y_star_outside_closure():
     weight = grasp_env.load_scene("fig13").object_weight
     assert not info["form_closure"] and info["grip_force"] == math.inf
     assert info["grip_objective"] == pytest.approx(weight)  # resting on the support: y* = W
+
+
+def test_random_shapes_use_no_vectorized_trigonometry(monkeypatch) -> None:
+    """The random shapes' vertices come from the C library's cosine and sine, one angle at a
+    time: numpy's array versions may be vectorized on one processor and not on another,
+    which changes the last bit of a shape, and from it where a trajectory crosses a fold."""
+
+    def vectorized(*args, **kwargs):
+        raise AssertionError("numpy's array trigonometry in a random shape")
+
+    class Numpy:  # numpy, but for its cosine and sine, as the shapes module sees it
+        cos = sin = staticmethod(vectorized)
+
+        def __getattr__(self, name):
+            return getattr(np, name)
+
+    env = FrictionlessGraspEnv(shape_randomizer={})
+    monkeypatch.setattr(shapes, "np", Numpy())
+    for seed in range(5):
+        env.reset(seed=seed)
+        random_convex_polygon(np.random.default_rng(seed), (3, 12), (0.2, 0.6), (1.0, 3.0))
