@@ -177,8 +177,9 @@ def convex_polygon(raw: Any, name: str, width: float | None = None) -> np.ndarra
     v = np.array([_vector(p, f"{name}[{i}]", 2) for i, p in enumerate(raw)])
     if width is not None:
         _coordinates(v, name, width)
-    edge = geo.norms(geo.edge_vectors(v))
     scale = float(np.ptp(v, axis=0).max())
+    _representable(v, scale, name)
+    edge = geo.norms(geo.edge_vectors(v))
     for i in np.flatnonzero(edge <= 1e-9 * max(scale, 1e-300)):
         j = (i + 1) % len(v)
         raise SceneError(f"{name}[{i}] and [{j}] repeat the point {v[i].tolist()}")
@@ -187,6 +188,29 @@ def convex_polygon(raw: Any, name: str, width: float | None = None) -> np.ndarra
     if not geo.is_convex_ccw(v) or not geo.turns_once(v):
         raise SceneError(f"{name} do not form a strictly convex polygon: {_convexity_fault(v)}")
     return v
+
+
+#: Largest coordinate and least extent (largest minus least coordinate) of a polygon: the
+#: squares and products of its coordinates, which the shape checks and the analyses form,
+#: stay within the normal range of doubles (about 1e-308 to 1e308).
+POLYGON_RANGE = (1e-150, 1e150)
+
+
+def _representable(v: np.ndarray, scale: float, name: str) -> None:
+    """Refuse a polygon whose coordinates' squares would overflow, or whose extent's would
+    underflow (a polygon of all one point is left to the repeated-point check)."""
+    least, most = POLYGON_RANGE
+    big = np.argwhere(np.abs(v) > most)
+    if len(big):
+        i, j = (int(x) for x in big[0])
+        raise SceneError(
+            f"{name}[{i}][{j}] must be within {most:g} in magnitude, got {float(v[i, j])!r}"
+        )
+    if 0.0 < scale < least:
+        raise SceneError(
+            f"{name} span {scale!r}, less than {least:g}: too small a polygon for double "
+            f"precision (scale it up); vertices: {v.tolist()}"
+        )
 
 
 def _convexity_fault(v: np.ndarray) -> str:

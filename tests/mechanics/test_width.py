@@ -108,8 +108,11 @@ PENTAGRAM = [[math.cos(k * 4 * math.pi / 5), math.sin(k * 4 * math.pi / 5)] for 
             r"\[1\]\[0\] must be a number, got True",
         ),
         ("fig13", r"at least 3 \[x, y\] points, got 'fig13'"),
+        # squares of such coordinates leave the doubles' range (overflow, underflow)
+        ([[0.0, 0.0], [1e308, 0.0], [0.0, 1e308]], r"\[1\]\[0\] must be within 1e\+150 .*1e\+308"),
+        ([[0.0, 0.0], [1e-300, 0.0], [0.0, 1e-300]], r"span 1e-300, less than 1e-150"),
     ],
-    ids=["clockwise", "two-vertices", "3d", "pentagram", "str", "bool", "name"],
+    ids=["clockwise", "two-vertices", "3d", "pentagram", "str", "bool", "name", "huge", "tiny"],
 )
 def test_bad_input_raises(bad, pattern: str) -> None:
     # The scene loader's checks of object.vertices, naming the argument.
@@ -118,6 +121,13 @@ def test_bad_input_raises(bad, pattern: str) -> None:
             f(bad)
     with pytest.raises(SceneError):
         scene_from_dict({**SCENE, "object": {"vertices": bad}})
+
+
+@pytest.mark.parametrize("k", [1e-140, 1e140])
+def test_far_scales_within_the_range_give_the_scaled_answer(k: float) -> None:
+    v = np.array([[0.0, 0.0], [2.0, 0.0], [0.5, 1.0]])  # width: the height, 1
+    assert object_width(k * v) == pytest.approx(k, rel=1e-12)
+    np.testing.assert_allclose(width_direction(k * v), width_direction(v), atol=1e-12)
 
 
 @st.composite
