@@ -81,8 +81,8 @@ def random_convex_polygon(
     gaps = rng.uniform(1.0, 3.0, n)
     angles = rng.uniform(0.0, 2 * math.pi) + 2 * math.pi * np.cumsum(gaps) / gaps.sum()
     ratio = rng.uniform(aspect[0], aspect[1])
-    # the C library's cosine and sine, one angle at a time: numpy's array versions differ in
-    # the last bit between processors (vectorized on some), and the shapes must not
+    # the C library's cosine and sine, one angle at a time: numpy's array versions, chosen by
+    # the processor's instruction sets, may differ in the last bit, and the shapes must not
     v = np.array([(math.cos(a), ratio * math.sin(a)) for a in angles.tolist()])
     c = geo.polygon_centroid(v)
     d = geo.edge_vectors(v)
