@@ -18,6 +18,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
 from grasp_env.arguments import integer
+from grasp_env.envs import VECTOR_ENTRY_POINT
 from grasp_env.envs.vector import INFO_FLAGS, INFO_VALUES, FrictionlessGraspVectorEnv
 
 
@@ -97,8 +98,13 @@ def make_vec_env(
 ) -> BatchedVecEnv:  # fmt: skip
     """``n_envs`` episodes of ``env_id`` (``gymnasium.make_vec``'s batched env, with
     ``env_kwargs`` over the registered ones) as an SB3 ``VecEnv``, its sub-env ``i`` seeded
-    with ``seed + i`` at the first reset (SB3's ``make_vec_env`` convention)."""
+    with ``seed + i`` at the first reset (SB3's ``make_vec_env`` convention). ``ValueError``
+    names ``n_envs`` below 1, ``seed`` other than None or an integer >= 0, and an ``env_id``
+    that has no batched env."""
     n_envs = integer(n_envs, "n_envs", 1)  # named as the caller named it
+    seed = None if seed is None else integer(seed, "seed", 0)
+    if gym.spec(env_id).vector_entry_point != VECTOR_ENTRY_POINT:
+        raise ValueError(f"env_id {env_id!r} has no batched env (not one of grasp_env's ids)")
     venv = gym.make_vec(env_id, num_envs=n_envs, threads=threads, **env_kwargs)
     vec = BatchedVecEnv(venv)
     if seed is not None:

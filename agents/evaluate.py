@@ -80,7 +80,14 @@ from agents.summary import (
     write_gif,
 )
 from agents.sweep_page import FRICTION, UNCERTAINTY, Sweep, sweep_page, sweep_plot
-from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
+from grasp_env.cli import (
+    MAX_WORKERS,
+    HelpFormatter,
+    nonnegative_int,
+    out_dir_problem,
+    positive_int,
+    workers,
+)
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 from grasp_env.envs.uncertainty import MAX_UNCERTAINTY
 from grasp_env.mechanics.friction import MU_MAX
@@ -177,7 +184,6 @@ def _one_thread() -> None:
 
 #: Most ``--workers`` accepted: 4 processes per CPU. More only queue for the CPUs, each one
 #: holding an env, a torch runtime and the agents in memory.
-MAX_WORKERS = 4 * (os.cpu_count() or 1)
 #: The project's docs, whose ``training.md`` a results page links to wherever it is written.
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -285,7 +291,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument(
         "--workers",
-        type=positive_int,
+        type=workers,
         default=1,
         help=f"processes, at most 4 x the CPUs = {MAX_WORKERS}",
     )
@@ -326,8 +332,6 @@ def main(argv: list[str] | None = None) -> None:
             f"--{sweep.key} levels; docs/{sweep.key}_results.md is the shipped one)",
         )  # fmt: skip
     args = parser.parse_args(argv)
-    if args.workers > MAX_WORKERS:
-        parser.error(f"--workers must be at most 4 x the CPUs = {MAX_WORKERS}, got {args.workers}")
     try:
         specs = default_policies(
             args.models, args.rllib_checkpoint, args.sampled, args.planner_in_place

@@ -77,7 +77,7 @@ from agents.expert import (
 )
 from agents.imitation_page import training_page
 from agents.provenance import git_commit, utc_now
-from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
+from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int, workers
 
 
 def _net_arch(text: str) -> list[int]:
@@ -120,7 +120,7 @@ TRAINING_OPTIONS = (
     ("--batch-size", positive_int, 256, "BC batch size"),
     ("--lr", _positive_float, 1e-3, "BC learning rate (Adam)"),
     ("--net-arch", _net_arch, "256,256", "hidden sizes, e.g. 256,256"),
-    ("--workers", positive_int, 2, "processes for episodes"),
+    ("--workers", workers, 2, "processes for episodes"),
     ("--collect-minutes", _positive_float, None,
      "stop starting expert episodes after this wall time (default: none)"),
     ("--max-minutes", _positive_float, None,

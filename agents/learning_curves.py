@@ -52,7 +52,7 @@ from agents.models import (
     seed_sampling,
 )
 from agents.planner_base import planner_wrapper
-from grasp_env.cli import HelpFormatter, out_dir_problem, positive_int
+from grasp_env.cli import HelpFormatter, out_dir_problem, positive_int, workers
 
 #: First seed of the validation episodes: apart from training (small seeds) and from the
 #: held-out suites of ``agents.evaluate`` (1,000,000 on).
@@ -275,7 +275,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--shapes", type=positive_int, default=20, help="validation episodes")
     parser.add_argument("--every", type=positive_int, default=250_000, help="checkpoint spacing")
     parser.add_argument("--bin", type=positive_int, default=50_000, help="training-curve bin")
-    parser.add_argument("--workers", type=positive_int, default=1, help="processes")
+    parser.add_argument("--workers", type=workers, default=1, help="processes")
     parser.add_argument(
         "--sampled", action="store_true",
         help="play actions drawn from the policy's distribution, seeded with each validation "
@@ -313,10 +313,13 @@ def main(argv: list[str] | None = None) -> None:
         for run in runs:
             if not (run / "train_stats.json").is_file():
                 parser.error(f"--best-out: {str(run)!r} has not finished (no train_stats.json)")
+        if (Path(args.best_out) / "model.zip").exists():
+            parser.error(f"--best-out {args.best_out} already holds a model.zip")
         if problem := out_dir_problem(Path(args.best_out)):
             parser.error(f"--best-out {problem}")
+    if problem := out_dir_problem(Path(args.out)):
+        parser.error(f"--out {problem}")
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     rows = curves(runs, args.shapes, args.every, args.workers, args.sampled)
     with open(out / "learning_curves.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -50,7 +50,7 @@ import numpy as np
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.episodes import seed_problem
 from agents.scripted_policy import ScriptedPolicy
-from grasp_env.cli import positive_int
+from grasp_env.cli import workers
 from grasp_env.envs.checks import palm_problem, workspace_problem
 from grasp_env.planning import approach_path, plan_grasp
 from grasp_env.simulator import Simulator
@@ -191,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="the scripted planner's episodes in the lifting task from its own start instead",
     )
-    parser.add_argument("--workers", type=positive_int, default=1, help="processes")
+    parser.add_argument("--workers", type=workers, default=1, help="processes")
     args = parser.parse_args(argv)
     if args.out.exists():
         parser.error(f"--out {str(args.out)!r} exists; remove it or name another file")

@@ -42,7 +42,7 @@ from typing import Any
 
 from benchmarks.blas_worker import BLAS_VARS, blas_libraries, play, worker
 from benchmarks.common import OUT, REPO, headless, parser, table, write
-from grasp_env.cli import out_dir_problem
+from grasp_env.cli import out_dir_problem, workers
 
 CORE_TYPES = ("unset", "Haswell", "Sandybridge", "Prescott")
 BASELINE = "unset"
@@ -331,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
         help=f"OpenBLAS core types ({' '.join(CORE_TYPES)}); unset is always run",
     )
     ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES))
-    ap.add_argument("--workers", type=int, default=2, help="processes at a time")
+    ap.add_argument("--workers", type=workers, default=2, help="processes at a time")
     ap.add_argument("--out", type=Path, default=OUT, help="results folder")
     ap.add_argument(
         "--replay",

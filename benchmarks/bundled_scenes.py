@@ -22,6 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from benchmarks.common import BudgetExceeded, headless, parser, table, time_limit, write
+from grasp_env.cli import workers
 
 STARTS = ("scene", "preliftoff")
 #: CPU seconds fig13's whole plan may take (the paper's VAX took 0.153 s).
@@ -349,7 +350,7 @@ def main(argv: list[str] | None = None) -> int:
         help="the scene whose plan is tabled step by step beside the paper's Fig. 13",
     )  # fmt: skip
     ap.add_argument("--timeout", type=float, default=600.0, help="wall seconds a plan or episode")
-    ap.add_argument("--workers", type=int, default=2, help="processes")
+    ap.add_argument("--workers", type=workers, default=2, help="processes")
     args = ap.parse_args(argv)
     if args.workers < 1:
         ap.error(f"--workers must be >= 1, got {args.workers}")

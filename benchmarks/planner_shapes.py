@@ -26,6 +26,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from benchmarks.common import BudgetExceeded, headless, parser, table, time_limit, write
+from grasp_env.cli import workers
 
 SUITES = ("heldout", "wide", "small")
 #: Targets of every suite: the share of tippable shapes lifted, and a plan's CPU seconds
@@ -381,7 +382,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES))
     ap.add_argument("--env", action="store_true", help="also the scripted policy in the env")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall seconds a plan or episode")
-    ap.add_argument("--workers", type=int, default=2, help="processes")
+    ap.add_argument("--workers", type=workers, default=2, help="processes")
     args = ap.parse_args(argv)
     for name in ("shapes", "workers"):
         if getattr(args, name) < 1:

@@ -43,6 +43,7 @@ from benchmarks.common import (
 )
 from benchmarks.throughput import RandomActions
 from benchmarks.work_precision import closing_motion
+from grasp_env.cli import positive_int
 
 #: ``(category, file regex, function-name regex)``; the first rule that matches wins.
 PHASES: list[tuple[str, str, str]] = [
@@ -246,7 +247,7 @@ def run(
 
 #: ``run``'s options on the command line: name, type, help.
 OPTIONS = (
-    ("steps", int, "random-action steps per configuration"),
+    ("steps", positive_int, "random-action steps per configuration"),
     ("baseline", Path, "an older profile.json to compare with"),
 )
 

@@ -27,6 +27,7 @@ from io import BytesIO
 from pathlib import Path
 
 from benchmarks.common import OUT, headless, parser, table, write
+from grasp_env.cli import positive_float, positive_int
 
 #: The commit measured against by default: the simulator and env before the compiled core.
 BASE = "dff3a09"
@@ -195,8 +196,10 @@ def run(base: str | Path = BASE, budget: float = 20.0, rounds: int = 3, out: Pat
 def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.scripted_speedup", __doc__, quick="2 rounds of 3 s")
     ap.add_argument("--base", default=BASE, help="the earlier commit")
-    ap.add_argument("--budget", type=float, default=20.0, help="seconds per side per round")
-    ap.add_argument("--rounds", type=int, default=3, help="rounds")
+    ap.add_argument(
+        "--budget", type=positive_float, default=20.0, help="seconds per side per round"
+    )
+    ap.add_argument("--rounds", type=positive_int, default=3, help="rounds")
     ap.add_argument("--out", type=Path, help="the page (default: none, printed only)")
     args = ap.parse_args(argv)
     budget, rounds = (3.0, 2) if args.quick else (args.budget, args.rounds)

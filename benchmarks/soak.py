@@ -47,7 +47,7 @@ import numpy as np
 
 from benchmarks.common import git_commit
 from benchmarks.soak_shapes import POPULATION, SCENE_KINDS, random_stress_scene
-from grasp_env.cli import HelpFormatter
+from grasp_env.cli import HelpFormatter, workers
 from grasp_env.testing import EQ_RTOL, check_state
 
 #: The committed results (``--out benchmarks/results/soak.md`` updates them) and the default
@@ -314,7 +314,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--steps", type=int, default=1_000_000, help="total env steps")
     ap.add_argument("--shapes", type=int, default=1000, help="random shapes")
-    ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 2)), help="processes")
+    ap.add_argument(
+        "--workers", type=workers, default=max(1, (os.cpu_count() or 2)), help="processes"
+    )
     ap.add_argument("--seed", type=int, default=0, help="seed of the shapes and actions")
     ap.add_argument("--quick", action="store_true", help="2,000 steps on 20 shapes")
     ap.add_argument("--only", type=int, default=None, help="run one shape index (serial)")

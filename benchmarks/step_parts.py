@@ -34,6 +34,7 @@ import numpy as np
 import grasp_env  # noqa: F401  (registers the env ids)
 from benchmarks.common import REPO, headless, page_main, table, write
 from benchmarks.throughput import RandomActions
+from grasp_env.cli import positive_int
 from grasp_env.envs.episode import state_arrays
 from grasp_env.kernel import step as kernel
 from grasp_env.sim.move import OUT_SIZE, OUT_UNTOUCHED
@@ -243,7 +244,7 @@ def run(quick: bool, out: Path, steps: int | None = None) -> Path:
 
 
 #: ``run``'s option on the command line: name, type, help.
-OPTIONS = (("steps", int, "random-action steps per set-up"),)
+OPTIONS = (("steps", positive_int, "random-action steps per set-up"),)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.common import OUT, headless, parser, table, write
-from grasp_env.cli import out_dir_problem
+from grasp_env.cli import out_dir_problem, workers
 
 SUITES = ("extreme", "soak")
 #: Targets, seconds.
@@ -239,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.step_times", __doc__, quick="3 episodes a suite")
     ap.add_argument("--episodes", type=int, default=200, help="episodes a suite")
     ap.add_argument("--steps", type=int, default=100, help="steps an episode at most")
-    ap.add_argument("--workers", type=int, default=2, help="processes, one per core")
+    ap.add_argument("--workers", type=workers, default=2, help="processes, one per core")
     ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES), help="suites")
     ap.add_argument("--out", type=Path, default=OUT, help="results folder")
     ap.add_argument(

@@ -26,6 +26,7 @@ from gymnasium import spaces
 
 import grasp_env  # noqa: F401  (registers FrictionlessGrasp-v0)
 from benchmarks.common import headless, page_main, table, write
+from grasp_env.cli import positive_float, positive_int
 
 BASELINES = ("LunarLander-v3", "CartPole-v1")
 #: The env configurations stepped with random actions.
@@ -233,7 +234,10 @@ def run(quick: bool, out: Path, budget: float | None = None, rounds: int | None 
 
 
 #: ``run``'s options on the command line: name, type, help.
-OPTIONS = (("budget", float, "seconds per env per round"), ("rounds", int, "rounds"))
+OPTIONS = (
+    ("budget", positive_float, "seconds per env per round"),
+    ("rounds", positive_int, "rounds"),
+)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from pathlib import Path
+
+#: Most processes a command starts: beyond four a CPU they only wait and take memory.
+MAX_WORKERS = 4 * (os.cpu_count() or 1)
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -46,6 +50,27 @@ def positive_int(text: str) -> int:
 def nonnegative_int(text: str) -> int:
     """An ``argparse`` type: an integer >= 0."""
     return _int_at_least(text, 0, "a non-negative integer")
+
+
+def workers(text: str) -> int:
+    """An ``argparse`` type: a number of processes, 1 to ``MAX_WORKERS``."""
+    value = positive_int(text)
+    if value > MAX_WORKERS:
+        raise argparse.ArgumentTypeError(
+            f"expected at most 4 x the CPUs = {MAX_WORKERS} processes, got {text!r}"
+        )
+    return value
+
+
+def positive_float(text: str) -> float:
+    """An ``argparse`` type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return value
 
 
 def _int_at_least(text: str, least: int, what: str) -> int:

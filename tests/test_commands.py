@@ -1,6 +1,7 @@
 """The commands run from any directory, with the same names for the same things and their
 defaults in ``--help``."""
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -63,3 +64,32 @@ def test_scene_and_scenes_name_the_scene(capsys):
     assert main(["--scenes", "fig13"]) == main(["--scene", "fig13"]) == 0
     assert main(["--scene", "fig14"]) == 2
     assert "error: --scene 'fig14': not a bundled scene" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("main", "argv", "needle"),
+    [
+        ("benchmarks.throughput", ["--rounds", "0"], r"--rounds: expected a positive integer"),
+        ("benchmarks.throughput", ["--budget", "nan"], r"--budget: expected a finite number"),
+        ("benchmarks.throughput", ["--budget", "-1"], r"--budget: expected a finite number"),
+        ("benchmarks.scripted_speedup", ["--rounds", "0"], r"--rounds: expected a positive"),
+        ("benchmarks.step_parts", ["--steps", "-1"], r"--steps: expected a positive integer"),
+        ("benchmarks.profile_step", ["--steps", "-5"], r"--steps: expected a positive integer"),
+        (
+            "agents.planner_starts",
+            ["--out", "x.pkl", "--workers", "100000"],
+            r"--workers: expected at most 4 x the CPUs",
+        ),
+        ("benchmarks.planner_shapes", ["--workers", "0"], r"--workers: expected a positive"),
+        ("benchmarks.soak", ["--workers", "0"], r"--workers: expected a positive integer"),
+    ],
+)
+def test_bad_numbers_are_usage_errors(main, argv, needle, capsys):
+    """Counts, budgets and processes are checked by argparse before any work: exit status 2
+    and a message naming the option and the value."""
+    import importlib
+
+    with pytest.raises(SystemExit) as info:
+        importlib.import_module(main).main(argv)
+    assert info.value.code == 2
+    assert re.search(needle, capsys.readouterr().err)

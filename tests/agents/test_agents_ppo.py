@@ -563,8 +563,8 @@ def test_evaluation_refuses_more_workers_than_its_bound(capsys, monkeypatch):
         ev.main(["--models", "--workers", str(ev.MAX_WORKERS + 1)])
     assert info.value.code == 2
     assert (
-        f"error: --workers must be at most 4 x the CPUs = {ev.MAX_WORKERS}, "
-        f"got {ev.MAX_WORKERS + 1}" in capsys.readouterr().err
+        f"error: argument --workers: expected at most 4 x the CPUs = {ev.MAX_WORKERS} "
+        f"processes, got '{ev.MAX_WORKERS + 1}'" in capsys.readouterr().err
     )
     assert ev.MAX_WORKERS == 4 * (os.cpu_count() or 1)
     with pytest.raises(SystemExit):
@@ -754,6 +754,16 @@ def test_learning_curves_of_a_run(trained, tmp_path, capsys):
     (entry,) = yaml.safe_load((tmp_path / "sel" / "best" / "config.yml").read_text()).values()
     assert entry["n_timesteps"] == int(chosen["steps"])
     models.load_agent(tmp_path / "sel" / "best")  # a model directory like any other
+    kept_model = (tmp_path / "sel" / "best" / "model.zip").read_bytes()
+    with pytest.raises(SystemExit):  # a folder holding a model is never overwritten
+        lc.main([str(run), "--shapes", "2", "--every", "128", "--out", str(tmp_path / "sel2"),
+                 "--best-out", str(tmp_path / "sel" / "best")])  # fmt: skip
+    assert "already holds a model.zip" in capsys.readouterr().err
+    assert (tmp_path / "sel" / "best" / "model.zip").read_bytes() == kept_model
+    (tmp_path / "file").write_text("")
+    with pytest.raises(SystemExit):
+        lc.main([str(run), "--out", str(tmp_path / "file")])
+    assert "--out" in capsys.readouterr().err
     unfinished = tmp_path / "unfinished" / run.name
     shutil.copytree(run, unfinished, ignore=shutil.ignore_patterns("train_stats.json"))
     with pytest.raises(SystemExit):

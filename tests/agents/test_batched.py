@@ -4,6 +4,8 @@ against single envs stepped with the same actions, and SB3's wrappers on top."""
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -108,3 +110,15 @@ def test_null_env_follows_sb3s_conventions():
 def test_bad_n_envs_is_named_as_the_caller_named_it(n_envs):
     with pytest.raises(ValueError, match=rf"n_envs must be an integer >= 1, got {n_envs!r}"):
         make_vec_env("FrictionlessGrasp-v0", n_envs)
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "a", True, math.nan])
+def test_bad_seed_is_named(seed):
+    with pytest.raises(ValueError, match=r"seed must be an integer >= 0"):
+        make_vec_env("FrictionlessGrasp-v0", 2, seed=seed)
+
+
+def test_an_id_without_a_batched_env_is_named():
+    with pytest.raises(ValueError, match=r"env_id 'CartPole-v1' has no batched env"):
+        make_vec_env("CartPole-v1", 2)
+    assert make_vec_env("FrictionlessGrasp-v0", 2, seed=np.int64(3)).num_envs == 2
