@@ -27,6 +27,8 @@ from typing import Any
 import gymnasium as gym
 import yaml
 
+from grasp_env.cli import read_text
+
 REPO = Path(__file__).resolve().parent.parent
 #: The default hyperparameter file, as the commands show it: relative to the repository
 #: (:func:`config_path` finds it from any working directory).
@@ -50,6 +52,9 @@ ENTRY_KEYS = (
 )
 #: PPO arguments that may be a schedule, ``"lin_<value>"`` (the zoo's keys).
 SCHEDULES = ("learning_rate", "clip_range", "clip_range_vf")
+#: PPO arguments that are counts, positive integers: stable-baselines3 checks them only when
+#: it builds the model, after the run folder is made.
+COUNTS = ("n_steps", "batch_size", "n_epochs")
 #: Vector envs of the training envs. ``"auto"``: the batched env (:mod:`agents.batched`,
 #: every env stepped by one compiled call) where the entry has several envs and no wrapper
 #: but ``TrainingInfo`` (whose work it does), else DummyVecEnv (measured as fast as
@@ -62,11 +67,11 @@ BATCHED_WRAPPERS = frozenset({"agents.wrappers.TrainingInfo"})
 # ---------------------------------------------------------------------- files
 def read_yaml(path: str | os.PathLike, what: str = "config file") -> Any:
     """A YAML file's data; fails with a one-line ``ValueError`` naming the file and where it
-    is not valid."""
+    is not valid (not UTF-8 text, not YAML)."""
     try:
-        text = Path(path).read_text()
-    except OSError as exc:
-        raise ValueError(f"{what} {str(path)!r}: cannot read it ({exc.strerror})") from None
+        text = read_text(path)
+    except ValueError as exc:
+        raise ValueError(f"{what} {exc}") from None
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -206,6 +211,14 @@ def wrapper_specs(entry: dict[str, Any]) -> list[tuple[type[gym.Wrapper], dict]]
     return specs
 
 
+def count_problem(key: str, value: Any) -> str | None:
+    """Why ``value`` cannot be PPO's ``key`` where that is a count (:data:`COUNTS`), or
+    None."""
+    if key in COUNTS and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+        return f"{key} must be a positive integer, got {value!r}"
+    return None
+
+
 def check_entry(entry: dict[str, Any]) -> None:
     """Check every value of an entry (from :func:`get_entry`) and build one env of it, as the
     zoo will, before any training starts. Fails with a ``ValueError`` naming the entry and
@@ -235,6 +248,14 @@ def check_entry(entry: dict[str, Any]) -> None:
     unknown = sorted(set(entry) - set(ENTRY_KEYS) - allowed)
     if unknown:
         fail(f"unknown key(s) {', '.join(map(str, unknown))}: neither the zoo's nor PPO's")
+    for key in COUNTS:
+        if key in entry and (problem := count_problem(key, entry[key])):
+            fail(problem)
+    if entry.get("normalize_advantage", True):  # stable-baselines3's assertions, and defaults
+        if entry.get("batch_size", 64) < 2:
+            fail("batch_size must be > 1 where advantages are normalized (normalize_advantage)")
+        if entry.get("n_steps", 2048) * n_envs < 2:
+            fail("n_steps x n_envs must be > 1 where advantages are normalized")
     try:
         if not isinstance(ppo_kwargs(entry).get("policy_kwargs", {}), dict):
             raise ValueError(f"policy_kwargs {entry['policy_kwargs']!r}: expected a dict")

@@ -83,9 +83,12 @@ from agents.sweep_page import FRICTION, UNCERTAINTY, Sweep, sweep_page, sweep_pl
 from grasp_env.cli import (
     MAX_WORKERS,
     HelpFormatter,
+    existing_dir,
+    file_problem,
     nonnegative_int,
     out_dir_problem,
     positive_int,
+    read_text,
     workers,
 )
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
@@ -190,12 +193,8 @@ DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 def results_page_problem(path: Path) -> str | None:
     """Why the results page cannot be written at ``path``, or None: checked before any
-    episode runs."""
-    if path.is_dir():
-        return f"{path} is a directory"
-    if not path.parent.is_dir():
-        return f"{path}: its folder {path.parent} does not exist"
-    return None
+    episode runs. Its folder must exist: the page links to the docs relative to it."""
+    return file_problem(path, make_folder=False)
 
 
 def readme_problem(path: Path) -> str | None:
@@ -203,7 +202,10 @@ def readme_problem(path: Path) -> str | None:
     before any episode runs."""
     if not path.is_file():
         return f"{path} is not a file"
-    text = path.read_text()
+    try:
+        text = read_text(path)
+    except ValueError as exc:
+        return str(exc)
     if not 0 <= text.find(README_BEGIN) < text.find(README_END):
         return f"{path} has no results block (the lines {README_BEGIN!r} ... {README_END!r})"
     return None
@@ -226,6 +228,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--models",
         nargs="*",
+        type=existing_dir,
         metavar="DIR",
         help="model directories or zoo run folders (default: agents/models/*; the option alone: "
         "no PPO model)",
@@ -233,6 +236,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--sampled",
         nargs="+",
+        type=existing_dir,
         default=[],
         metavar="DIR",
         help="model directories or zoo run folders to play also with actions drawn from their "
@@ -243,6 +247,7 @@ def main(argv: list[str] | None = None) -> None:
         "--rllib-checkpoint",
         nargs="+",
         action="extend",
+        type=existing_dir,
         default=[],
         metavar="PATH",
         help="agents.train_rllib run directories or their checkpoint/ (needs ray[rllib]; "

@@ -48,6 +48,7 @@ import platform
 import shlex
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
@@ -77,7 +78,15 @@ from agents.expert import (
 )
 from agents.imitation_page import training_page
 from agents.provenance import git_commit, utc_now
-from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int, workers
+from grasp_env.cli import (
+    HelpFormatter,
+    existing_file,
+    nonnegative_int,
+    out_dir_problem,
+    positive_int,
+    seed_int,
+    workers,
+)
 
 
 def _net_arch(text: str) -> list[int]:
@@ -105,7 +114,7 @@ def _positive_float(text: str) -> float:
 EXPERT_OPTIONS = (
     ("--episodes", nonnegative_int, 300, "expert episodes from the scene's start"),
     ("--lift-episodes", nonnegative_int, 150, "expert episodes from the planner's placement"),
-    ("--seed", int, 0, "first training seed (default: 0)"),
+    ("--seed", seed_int, 0, "first training seed (default: 0)"),
     ("--hold-steps", nonnegative_int, 10, "steps kept after the expert's plan is played"),
 )
 #: Cloning's, DAgger's and the run's numbers: flag, type, default (None: unset), help.
@@ -129,6 +138,41 @@ TRAINING_OPTIONS = (
 )  # fmt: skip
 
 
+#: The arrays of the expert data (``expert.npz``) that cloning reads, one row per sample.
+DATA_KEYS = ("obs", "act", "round")
+
+
+def read_data(path: Path) -> dict[str, np.ndarray]:
+    """The expert data of an earlier run (``expert.npz``), checked before any work: every
+    array of :data:`DATA_KEYS`, at least one sample, as many of each, observations as wide as
+    the env's and actions in its action space; a one-line ``ValueError`` naming the file."""
+    try:
+        with np.load(path) as npz:  # no pickles: allow_pickle is off
+            data = {k: npz[k] for k in npz.files}
+    except (OSError, ValueError, EOFError, TypeError, zipfile.BadZipFile) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ValueError(f"{str(path)!r} is not an .npz file of arrays ({reason})") from None
+    if missing := [k for k in DATA_KEYS if k not in data]:
+        raise ValueError(f"{str(path)!r} has no {', '.join(missing)}: not an expert.npz")
+    env = make_env("scene")
+    samples = len(data["act"])
+    shapes = {
+        "obs": (samples, env.observation_space.shape[0]),
+        "act": (samples, env.action_space.shape[0]),
+        "round": (samples,),
+    }
+    if samples == 0:
+        raise ValueError(f"{str(path)!r} holds no samples")
+    for key, shape in shapes.items():
+        if data[key].shape != shape:
+            raise ValueError(f"{str(path)!r}: {key} of shape {data[key].shape}, expected {shape}")
+    try:
+        check_actions(data["act"], env.action_space)
+    except ValueError as exc:
+        raise ValueError(f"{str(path)!r}: {exc}") from None
+    return data
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m agents.imitation",
@@ -145,7 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--keep-failures", action="store_true", help="also keep the episodes the planner fails"
     )
     p.add_argument(
-        "--data", type=Path, help="expert data (expert.npz of an earlier run) instead of step 1"
+        "--data",
+        type=existing_file,
+        help="expert data (expert.npz of an earlier run) instead of step 1",
     )
     for flag, kind, default, text in TRAINING_OPTIONS:
         p.add_argument(flag, type=kind, default=default, help=text)
@@ -182,8 +228,11 @@ def main(argv: list[str] | None = None) -> int:
     n_dagger = args.dagger_iters * args.dagger_episodes
     if problem := seed_problem(args.seed, n_collect + n_dagger):
         parser.error(problem)
-    if args.data is not None and not args.data.is_file():
-        parser.error(f"--data {str(args.data)!r} is not a file")
+    if args.data is not None:
+        try:
+            data = read_data(args.data)
+        except ValueError as exc:
+            parser.error(f"--data {exc}")
     if (args.out / "model.zip").exists():
         parser.error(f"--out {args.out} already holds a model.zip")
     if problem := out_dir_problem(args.out):
@@ -206,8 +255,6 @@ def main(argv: list[str] | None = None) -> int:
     # 1. expert data
     width_obs = make_env("scene").observation_space.shape[0]
     if args.data is not None:
-        with np.load(args.data) as d:
-            data = {k: d[k] for k in d.files}
         log(f"expert data from {args.data}: {len(data['act'])} samples")
         collected: list[dict] = []
     else:

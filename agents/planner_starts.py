@@ -39,7 +39,6 @@ import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from functools import partial
-from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -50,7 +49,7 @@ import numpy as np
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.episodes import seed_problem
 from agents.scripted_policy import ScriptedPolicy
-from grasp_env.cli import workers
+from grasp_env.cli import out_file, seed_int, workers
 from grasp_env.envs.checks import palm_problem, workspace_problem
 from grasp_env.planning import approach_path, plan_grasp
 from grasp_env.simulator import Simulator
@@ -178,9 +177,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m agents.planner_starts", description=__doc__.split("\n\n")[0]
     )
-    parser.add_argument("--out", type=Path, required=True, help="the pickle to write")
+    parser.add_argument("--out", type=out_file, required=True, help="the pickle to write")
     parser.add_argument("--shapes", type=int, default=300, help="shapes to plan")
-    parser.add_argument("--seed", type=int, default=0, help="the first shape's reset seed")
+    parser.add_argument("--seed", type=seed_int, default=0, help="the first shape's reset seed")
     parser.add_argument(
         "--approach",
         action="store_true",

@@ -59,7 +59,7 @@ from agents.plan_report import (
 from agents.provenance import git_commit, utc_now
 from agents.scripted_policy import ScriptedPolicy
 from grasp_env import planning
-from grasp_env.cli import HelpFormatter, out_dir_problem
+from grasp_env.cli import HelpFormatter, file_problem, out_dir_problem
 from grasp_env.core.scene_loading import bundled_scenes, load_scene
 from grasp_env.mechanics.friction import MU_MAX
 from grasp_env.simulator import Simulator
@@ -98,6 +98,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--friction must be in [0, {MU_MAX:g}], got {args.friction!r}")
     if not (math.isfinite(args.dq) and 0 < args.dq <= 0.5):
         parser.error(f"--dq must be in (0, 0.5], got {args.dq!r}")
+    if args.friction_page and (
+        problem := file_problem(Path(args.friction_page), make_folder=False)
+    ):
+        parser.error(f"--friction-page {problem}")
     try:
         scene = load_scene(args.scene)
     except (ValueError, OSError) as exc:

@@ -48,7 +48,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 from agents import config
 from agents.callbacks import ProgressLines, WallTimeLimit, timed
 from agents.models import MODEL_DIR, SHIPPED, export_model, shipped_name
-from grasp_env.cli import HelpFormatter, positive_int
+from grasp_env.cli import HelpFormatter, out_dir_problem, positive_int, seed_int
 from grasp_env.envs import ENV_ID
 
 #: What ``benchmarks`` import from here.
@@ -233,6 +233,8 @@ class Hyperparams(StoreDict):
                 items.update(getattr(namespace, self.dest))
             except Exception:
                 items[key] = text
+            if problem := config.count_problem(key, items[key]):
+                parser.error(f"{option_string} {item!r}: {problem}")
         setattr(namespace, self.dest, items)
 
 
@@ -266,7 +268,7 @@ def parser() -> argparse.ArgumentParser:
         default=config.DEFAULT_CONFIG, metavar="FILE",
         help="zoo-format hyperparameter file (a relative path not found from here: the "
         "repository's)")
-    add("--seed", type=int, default=0, metavar="N", help="training env k is seeded seed + k")
+    add("--seed", type=seed_int, default=0, metavar="N", help="training env k is seeded seed + k")
     add("-n", "--n-timesteps", type=positive_int, metavar="N",
         help="total env steps (default: the entry's n_timesteps)")
     add("--max-minutes", type=_positive_float, metavar="M",
@@ -304,6 +306,10 @@ def main(argv: list[str] | None = None) -> None:
     p = parser()
     args = p.parse_args(argv)
     try:
+        config.load_config(args.conf_file)
+    except ValueError as exc:
+        p.error(f"--conf {exc}")
+    try:
         prepare(args.env, args.conf_file, args.hyperparams, args.n_timesteps)
         if args.update_shipped:
             args.out = str(MODEL_DIR / shipped_name(args.conf_file, args.env))
@@ -313,6 +319,10 @@ def main(argv: list[str] | None = None) -> None:
             trained_agent_dir(args.trained_agent)
     except ValueError as exc:
         p.error(str(exc))
+    # the arguments agree; now the folders (made here)
+    for option, folder in (("--out", args.out), ("-f", args.log_folder)):
+        if folder is not None and (problem := out_dir_problem(Path(folder))):
+            p.error(f"{option} {problem}")
     run = train(**vars(args))
     stats = json.loads((run / "train_stats.json").read_text())
     where = f"; model directory {args.out}" if args.out is not None else ""

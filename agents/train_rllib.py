@@ -15,6 +15,7 @@ iteration prints env steps, mean episode return, success rate and env steps/s. `
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import platform
@@ -32,7 +33,7 @@ from agents.config import REPO, load_config
 from agents.rllib_config import EntryEnv, build_config, compile_env, env_config, get_entry
 from agents.rllib_policy import CHECKPOINT_DIR
 from agents.rllib_training import check_address, cluster_cpus, runner_nodes, start_ray, train
-from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int
+from grasp_env.cli import HelpFormatter, nonnegative_int, out_dir_problem, positive_int, seed_int
 
 DEFAULT_CONFIG = REPO / "configs" / "rllib_ppo.yml"
 
@@ -48,6 +49,14 @@ def _out_problem(out: Path) -> str | None:
         return f"--out {str(out)!r} is inside the repository; use runs/... or a path outside it"
     problem = out_dir_problem(out)
     return None if problem is None else f"--out {problem}"
+
+
+def rllib_installed() -> bool:
+    """Whether Ray RLlib can be imported (the ``rllib`` extra)."""
+    try:
+        return importlib.util.find_spec("ray.rllib") is not None
+    except ImportError:  # no ray at all
+        return False
 
 
 def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, Any]]:
@@ -72,7 +81,7 @@ def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, An
     stop.add_argument("--iterations", type=positive_int, help="training iterations")
     stop.add_argument("--timesteps", type=positive_int, help="env steps (default: entry's)")
     parser.add_argument("--out", help="run directory (default: runs/rllib/<env id>)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=seed_int, default=0)
     parser.add_argument("--checkpoint-every", type=positive_int, default=10, help="iterations")
     args = parser.parse_args(argv)
     if args.address is None and args.ship_code:
@@ -80,7 +89,11 @@ def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, An
     if args.address is not None and args.num_cpus is not None:
         parser.error("--num-cpus is for a local instance; a cluster has the CPUs it has")
     try:
-        entry = get_entry(load_config(args.config), args.env)
+        config = load_config(args.config)
+    except ValueError as exc:
+        parser.error(f"--config {exc}")
+    try:
+        entry = get_entry(config, args.env)
     except ValueError as exc:
         parser.error(str(exc))
     import grasp_env  # noqa: F401  (registers its env ids)
@@ -89,6 +102,11 @@ def parse_args(argv: list[str] | None) -> tuple[argparse.Namespace, dict[str, An
         gym.spec(args.env)
     except gym.error.Error as exc:
         parser.error(f"--env {args.env!r}: {exc}")
+    if not rllib_installed():
+        parser.error(
+            "Ray RLlib is not installed: install the rllib extra, pip install -e '.[rllib]' "
+            "(in a venv of its own: docs/rllib.md)"
+        )
     try:
         EntryEnv(env_config(entry, args.env)).close()
     except (gym.error.Error, TypeError, ValueError) as exc:

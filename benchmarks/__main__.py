@@ -16,7 +16,6 @@ gathered on ``targets.md``)."""
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -84,8 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
     if problem := out_dir_problem(args.out):
-        print(f"benchmarks: --out {problem}", file=sys.stderr)
-        return 2
+        ap.error(f"--out {problem}")
     headless()
     names = args.only or [n for n in SUITE if not (args.quick and n in QUICK_SKIP)]
     start = time.perf_counter()

@@ -42,8 +42,10 @@ from typing import Any
 
 from benchmarks.blas_worker import BLAS_VARS, blas_libraries, play, worker
 from benchmarks.common import OUT, REPO, headless, parser, table, write
-from grasp_env.cli import out_dir_problem, workers
+from grasp_env.cli import fields, one_of, out_dir_problem, positive_int, seed_int, workers
 
+#: The core types the command runs: OpenBLAS takes a name it does not know with only a
+#: warning and runs the kernel it detects, so no other is accepted.
 CORE_TYPES = ("unset", "Haswell", "Sandybridge", "Prescott")
 BASELINE = "unset"
 #: ``OPENBLAS_L2_SIZE`` set with every named core type (as the machines that set one do).
@@ -321,11 +323,12 @@ def replay(suite: str, seed: int, steps: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.blas_variation", __doc__, quick="3 episodes a suite")
-    ap.add_argument("--episodes", type=int, default=200, help="episodes a suite")
-    ap.add_argument("--steps", type=int, default=100, help="steps an episode at most")
+    ap.add_argument("--episodes", type=positive_int, default=200, help="episodes a suite")
+    ap.add_argument("--steps", type=positive_int, default=100, help="steps an episode at most")
     ap.add_argument(
         "--core-types",
         nargs="+",
+        choices=CORE_TYPES,
         default=list(CORE_TYPES),
         metavar="TYPE",
         help=f"OpenBLAS core types ({' '.join(CORE_TYPES)}); unset is always run",
@@ -336,6 +339,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--replay",
         nargs=2,
+        action=fields(one_of(*SUITES), seed_int),
         metavar=("SUITE", "SEED"),
         help="print one episode's steps in this process and stop",
     )
@@ -348,11 +352,10 @@ def main(argv: list[str] | None = None) -> int:
         args.record.write_text(json.dumps(rec))
         return 0
     if args.replay:
-        replay(args.replay[0], int(args.replay[1]), args.steps)
+        replay(*args.replay, args.steps)
         return 0
     if problem := out_dir_problem(args.out):
-        print(f"blas_variation: --out {problem}", file=sys.stderr)
-        return 2
+        ap.error(f"--out {problem}")
     episodes = 3 if args.quick else args.episodes
     report = run(
         args.out,

@@ -24,20 +24,21 @@ OUT = REPO / "runs" / "benchmarks"
 
 
 def parser(module: str, doc: str, page: str | None = None, quick: str | None = None):
-    """A benchmark's command line (``python -m <module>``): its docstring's first line, every
-    default shown in ``--help``; ``--quick`` with help ``quick`` and ``--out`` (default
-    ``runs/benchmarks/<page>``) where given."""
-    from grasp_env.cli import HelpFormatter
+    """A benchmark's command line (``python -m <module>``): its docstring's first paragraph,
+    every default shown in ``--help``; ``--quick`` with help ``quick`` and ``--out`` (default
+    ``runs/benchmarks/<page>``, checked as the arguments are read: a file that can be
+    written, :func:`grasp_env.cli.out_file`) where given."""
+    from grasp_env.cli import HelpFormatter, out_file
 
     ap = argparse.ArgumentParser(
         prog=f"python -m {module}",
-        description=doc.splitlines()[0].replace("``", ""),
+        description=" ".join(doc.split("\n\n")[0].split()).replace("``", ""),
         formatter_class=HelpFormatter,
     )
     if quick is not None:
         ap.add_argument("--quick", action="store_true", help=quick)
     if page is not None:
-        ap.add_argument("--out", type=Path, default=OUT / page, help="the page (markdown)")
+        ap.add_argument("--out", type=out_file, default=OUT / page, help="the page (markdown)")
     return ap
 
 

@@ -36,6 +36,7 @@ from scipy.spatial import ConvexHull
 from benchmarks.common import headless, parser, table, write
 from benchmarks.soak import new_record, run_env
 from benchmarks.soak_shapes import rest_on_stable_edge, stress_scene
+from grasp_env.cli import positive_int, seed_int
 
 FAMILIES = (
     "hull", "sliver", "30-gon", "bulge", "tiny", "wide", "density", "touching", "scaled", "ids",
@@ -191,9 +192,9 @@ def run(shapes: int, steps: int, seed: int, out: Path) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.edge_probe", __doc__, "edge_probe.md")
-    ap.add_argument("--shapes", type=int, default=10, help="shapes per family")
-    ap.add_argument("--steps", type=int, default=300, help="steps per shape")
-    ap.add_argument("--seed", type=int, default=0, help="seed")
+    ap.add_argument("--shapes", type=positive_int, default=10, help="shapes per family")
+    ap.add_argument("--steps", type=positive_int, default=300, help="steps per shape")
+    ap.add_argument("--seed", type=seed_int, default=0, help="seed")
     args = ap.parse_args(argv)
     run(args.shapes, args.steps, args.seed, args.out)
     return 0

@@ -19,6 +19,7 @@ Usage: ``python -m benchmarks.ppo_throughput [--quick] [--rounds N] [--entry fig
 
 from __future__ import annotations
 
+import argparse
 import os
 import statistics
 import time
@@ -234,10 +235,22 @@ def run(quick: bool, out: Path, entry: str = "fig13_fingers", rounds: int | None
     return write(out, "PPO training throughput", body)
 
 
+def entry_name(text: str) -> str:
+    """An ``argparse`` type: an env id of ``configs/ppo.yml`` or a model shipped for one
+    (``agents.train_ppo.get_entry``), checked before any model is built."""
+    from agents.train_ppo import get_entry, load_config
+
+    try:
+        get_entry(load_config(REPO / "configs" / "ppo.yml"), text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"{exc}, or a model shipped for one") from None
+    return text
+
+
 #: ``run``'s options on the command line: name, type, help, default.
 OPTIONS = (
     ("rounds", positive_int, f"alternating rounds (default {ROUNDS}, 1 with --quick)"),
-    ("entry", str, "configs/ppo.yml entry", "fig13_fingers"),
+    ("entry", entry_name, "configs/ppo.yml entry, or a model shipped for one", "fig13_fingers"),
 )
 
 

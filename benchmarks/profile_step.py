@@ -21,6 +21,7 @@ Usage: ``python -m benchmarks.profile_step [--quick] [--baseline old.json]``
 
 from __future__ import annotations
 
+import argparse
 import cProfile
 import json
 import pstats
@@ -43,7 +44,7 @@ from benchmarks.common import (
 )
 from benchmarks.throughput import RandomActions
 from benchmarks.work_precision import closing_motion
-from grasp_env.cli import positive_int
+from grasp_env.cli import existing_file, positive_int, read_text
 
 #: ``(category, file regex, function-name regex)``; the first rule that matches wins.
 PHASES: list[tuple[str, str, str]] = [
@@ -245,10 +246,25 @@ def run(
     return out
 
 
+def baseline_file(text: str) -> Path:
+    """An ``argparse`` type: a ``profile.json`` (an object of JSON), read before any
+    profiling."""
+    path = existing_file(text)
+    try:
+        record = json.loads(read_text(path))
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r} is not JSON: {exc}") from None
+    except ValueError as exc:  # unreadable, not UTF-8
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if not isinstance(record, dict):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a profile.json: not a JSON object")
+    return path
+
+
 #: ``run``'s options on the command line: name, type, help.
 OPTIONS = (
     ("steps", positive_int, "random-action steps per configuration"),
-    ("baseline", Path, "an older profile.json to compare with"),
+    ("baseline", baseline_file, "an older profile.json to compare with"),
 )
 
 

@@ -17,12 +17,11 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import sys
 import time
 from pathlib import Path
 
 from benchmarks.common import REPO, headless, parser, table, write
-from grasp_env.cli import out_dir_problem
+from grasp_env.cli import positive_int
 
 #: RLlib set-ups: (env runners, envs per runner). Two envs in one process is what SB3's
 #: DummyVecEnv does; RLlib then batches their forward passes and connector calls.
@@ -128,20 +127,12 @@ def main(argv: list[str] | None = None) -> int:
     ap = parser(
         "benchmarks.rllib_throughput", __doc__, "rllib_throughput.md", "2 updates per measurement"
     )
-    ap.add_argument("--iterations", type=int, help="updates per measurement (default: 8)")
+    ap.add_argument("--iterations", type=positive_int, help="updates per measurement (default: 8)")
     ap.add_argument("--env", default="FrictionlessGrasp-v0", help="env id of both files")
     args = ap.parse_args(argv)
     missing = [m for m in ("ray", "stable_baselines3") if importlib.util.find_spec(m) is None]
     if missing:
-        print(
-            f'rllib_throughput: needs {" and ".join(missing)} (pip install -e ".[rllib,train]")',
-            file=sys.stderr,
-        )
-        return 2
-    if args.iterations is not None and args.iterations <= 0:
-        ap.error(f"--iterations must be positive, got {args.iterations}")
-    if problem := out_dir_problem(args.out.parent):
-        ap.error(f"--out {problem}")
+        ap.error(f'needs {" and ".join(missing)}: pip install -e ".[rllib,train]"')
     run(args.quick, args.out, args.env, args.iterations)
     return 0
 

@@ -16,6 +16,7 @@ compiled core; 3 rounds of 20 s: about 3 minutes).
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import statistics
@@ -26,7 +27,7 @@ import tempfile
 from io import BytesIO
 from pathlib import Path
 
-from benchmarks.common import OUT, headless, parser, table, write
+from benchmarks.common import OUT, REPO, headless, parser, table, write
 from grasp_env.cli import positive_float, positive_int
 
 #: The commit measured against by default: the simulator and env before the compiled core.
@@ -87,11 +88,26 @@ print(json.dumps({"steps": steps, "episodes": episodes, "seconds": wall}))
 """
 
 
+def revision(text: str) -> str:
+    """An ``argparse`` type: a commit of this repository (``git rev-parse --verify``), checked
+    before any measurement."""
+    try:
+        found = subprocess.run(
+            ["git", "rev-parse", "--verify", "--quiet", "--end-of-options", f"{text}^{{commit}}"],
+            cwd=REPO, capture_output=True, text=True,
+        )  # fmt: skip
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot run git ({exc.strerror or exc})") from None
+    if found.returncode != 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a commit of {REPO}")
+    return text
+
+
 def export(rev: str, into: Path) -> Path:
     """``grasp_env``, ``agents`` and ``configs`` at ``rev``, extracted under ``into``."""
     out = subprocess.run(
         ["git", "archive", rev, "grasp_env", "agents", "configs"],
-        cwd=Path(__file__).resolve().parent.parent, capture_output=True, check=True,
+        cwd=REPO, capture_output=True, check=True,
     )  # fmt: skip
     with tarfile.open(fileobj=BytesIO(out.stdout)) as tar:
         tar.extractall(into, filter="data")
@@ -194,13 +210,16 @@ def run(base: str | Path = BASE, budget: float = 20.0, rounds: int = 3, out: Pat
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = parser("benchmarks.scripted_speedup", __doc__, quick="2 rounds of 3 s")
-    ap.add_argument("--base", default=BASE, help="the earlier commit")
+    ap = parser(
+        "benchmarks.scripted_speedup", __doc__, "scripted_speedup.md", quick="2 rounds of 3 s"
+    )
+    ap.add_argument(
+        "--base", type=revision, default=BASE, help="the earlier commit (a revision git knows)"
+    )
     ap.add_argument(
         "--budget", type=positive_float, default=20.0, help="seconds per side per round"
     )
     ap.add_argument("--rounds", type=positive_int, default=3, help="rounds")
-    ap.add_argument("--out", type=Path, help="the page (default: none, printed only)")
     args = ap.parse_args(argv)
     budget, rounds = (3.0, 2) if args.quick else (args.budget, args.rounds)
     run(args.base, budget, rounds, args.out)

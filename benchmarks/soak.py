@@ -47,7 +47,7 @@ import numpy as np
 
 from benchmarks.common import git_commit
 from benchmarks.soak_shapes import POPULATION, SCENE_KINDS, random_stress_scene
-from grasp_env.cli import HelpFormatter, workers
+from grasp_env.cli import HelpFormatter, nonnegative_int, out_file, positive_int, seed_int, workers
 from grasp_env.testing import EQ_RTOL, check_state
 
 #: The committed results (``--out benchmarks/results/soak.md`` updates them) and the default
@@ -312,18 +312,20 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.splitlines()[0].replace("``", ""),
         formatter_class=HelpFormatter,
     )
-    ap.add_argument("--steps", type=int, default=1_000_000, help="total env steps")
-    ap.add_argument("--shapes", type=int, default=1000, help="random shapes")
+    ap.add_argument("--steps", type=positive_int, default=1_000_000, help="total env steps")
+    ap.add_argument("--shapes", type=positive_int, default=1000, help="random shapes")
     ap.add_argument(
         "--workers", type=workers, default=max(1, (os.cpu_count() or 2)), help="processes"
     )
-    ap.add_argument("--seed", type=int, default=0, help="seed of the shapes and actions")
+    ap.add_argument("--seed", type=seed_int, default=0, help="seed of the shapes and actions")
     ap.add_argument("--quick", action="store_true", help="2,000 steps on 20 shapes")
-    ap.add_argument("--only", type=int, default=None, help="run one shape index (serial)")
+    ap.add_argument(
+        "--only", type=nonnegative_int, default=None, help="run one shape index (serial)"
+    )
     ap.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
     ap.add_argument(
         "--out",
-        type=Path,
+        type=out_file,
         default=OUT / "soak.md",
         help="report page; the checkpoint goes beside it",
     )
@@ -336,8 +338,8 @@ def main(argv: list[str] | None = None) -> int:
         for ex in rec["examples"]:
             print(ex)
         return 0 if not (rec["exceptions"] or rec["sim_errors"] or rec["violating_steps"]) else 1
-    if args.steps < args.shapes or args.shapes < 1:
-        ap.error("--steps must be >= --shapes >= 1")
+    if args.steps < args.shapes:
+        ap.error(f"--steps {args.steps} must be >= --shapes {args.shapes}")
     ckpt = checkpoint_path(args.seed, args.steps, args.shapes, args.out.parent)
     if args.fresh and ckpt.exists():
         ckpt.unlink()

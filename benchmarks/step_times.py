@@ -23,7 +23,6 @@ import heapq
 import json
 import multiprocessing as mp
 import os
-import sys
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -33,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.common import OUT, headless, parser, table, write
-from grasp_env.cli import out_dir_problem, workers
+from grasp_env.cli import fields, one_of, out_dir_problem, positive_int, seed_int, workers
 
 SUITES = ("extreme", "soak")
 #: Targets, seconds.
@@ -237,24 +236,24 @@ def replay(suite: str, seed: int, step: int, repeat: int = 5) -> list[float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = parser("benchmarks.step_times", __doc__, quick="3 episodes a suite")
-    ap.add_argument("--episodes", type=int, default=200, help="episodes a suite")
-    ap.add_argument("--steps", type=int, default=100, help="steps an episode at most")
+    ap.add_argument("--episodes", type=positive_int, default=200, help="episodes a suite")
+    ap.add_argument("--steps", type=positive_int, default=100, help="steps an episode at most")
     ap.add_argument("--workers", type=workers, default=2, help="processes, one per core")
     ap.add_argument("--suites", nargs="+", choices=SUITES, default=list(SUITES), help="suites")
     ap.add_argument("--out", type=Path, default=OUT, help="results folder")
     ap.add_argument(
         "--replay",
         nargs=3,
+        action=fields(one_of(*SUITES), seed_int, positive_int),
         metavar=("SUITE", "SEED", "STEP"),
-        help="re-time one step in this process and stop",
+        help="re-time one step (1, 2, ...) of a page's episode in this process and stop",
     )
     args = ap.parse_args(argv)
     if args.replay:
-        replay(args.replay[0], int(args.replay[1]), int(args.replay[2]))
+        replay(*args.replay)
         return 0
     if problem := out_dir_problem(args.out):
-        print(f"step_times: --out {problem}", file=sys.stderr)
-        return 2
+        ap.error(f"--out {problem}")
     episodes = 3 if args.quick else args.episodes
     run(args.out, episodes=episodes, steps=args.steps, workers=args.workers, suites=args.suites)
     print((args.out / "step_times.md").read_text())

@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 #: Most processes a command starts: beyond four a CPU they only wait and take memory.
 MAX_WORKERS = 4 * (os.cpu_count() or 1)
+#: Largest seed: numpy's legacy generators (and so stable-baselines3's seeding) take no larger.
+MAX_SEED = 2**32 - 1
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -40,6 +43,101 @@ def out_dir_problem(path: Path) -> str | None:
     if not os.access(path, os.W_OK | os.X_OK):
         return f"{path} is not writable"
     return None
+
+
+def file_problem(path: Path, make_folder: bool = True) -> str | None:
+    """Why a file cannot be written at ``path``, or None if it can: not a directory, in a
+    writable folder, which may be missing where ``make_folder`` (then it must be creatable:
+    under a writable directory, no regular file on the way). Creates nothing: checked before
+    any work starts."""
+    if path.is_dir():
+        return f"{path} is a directory"
+    if path.exists() and not os.access(path, os.W_OK):
+        return f"{path} is not writable"
+    if not make_folder and not path.parent.is_dir():
+        return f"{path}: its folder {path.parent} does not exist"
+    folder = next(p for p in (path.parent, *path.parent.parents) if p.exists())
+    if not folder.is_dir():
+        return f"{path}: {folder} is not a directory"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"{path}: {folder} is not writable"
+    return None
+
+
+def read_text(path: str | os.PathLike) -> str:
+    """The text of file ``path``, read as UTF-8; a one-line ``ValueError`` naming the file
+    where it cannot be read or is not UTF-8."""
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{str(path)!r} is not UTF-8 text: {exc.reason}") from None
+    except OSError as exc:
+        raise ValueError(f"{str(path)!r}: cannot read it ({exc.strerror or exc})") from None
+
+
+def out_file(text: str) -> Path:
+    """An ``argparse`` type: where a file is to be written, its folder made when it is
+    (:func:`file_problem`)."""
+    path = Path(text)
+    if problem := file_problem(path):
+        raise argparse.ArgumentTypeError(problem)
+    return path
+
+
+def existing_file(text: str) -> Path:
+    """An ``argparse`` type: the path of a file that exists."""
+    path = Path(text)
+    if not path.is_file():
+        what = "not a file" if path.exists() else "no such file"
+        raise argparse.ArgumentTypeError(f"{what}: {text!r}")
+    return path
+
+
+def existing_dir(text: str) -> Path:
+    """An ``argparse`` type: the path of a directory that exists."""
+    path = Path(text)
+    if not path.is_dir():
+        what = "not a directory" if path.exists() else "no such directory"
+        raise argparse.ArgumentTypeError(f"{what}: {text!r}")
+    return path
+
+
+def seed_int(text: str) -> int:
+    """An ``argparse`` type: a seed, an integer from 0 to ``MAX_SEED``."""
+    value = _int_at_least(text, 0, "a seed >= 0")
+    if value > MAX_SEED:
+        raise argparse.ArgumentTypeError(f"expected a seed <= 2**32 - 1, got {text!r}")
+    return value
+
+
+def one_of(*names: str) -> Callable[[str], str]:
+    """An ``argparse`` type: one of ``names`` (for a value of :func:`fields`, which takes no
+    ``choices``)."""
+
+    def check(text: str) -> str:
+        if text not in names:
+            raise argparse.ArgumentTypeError(f"expected one of {', '.join(names)}, got {text!r}")
+        return text
+
+    return check
+
+
+def fields(*kinds: Callable[[str], object]) -> type[argparse.Action]:
+    """An ``argparse`` action of an option taking one value per kind (``nargs=len(kinds)``,
+    a ``metavar`` name per value), each converted by its kind as a ``type`` would be: a bad
+    one is a usage error naming the option, the value's name and the value."""
+
+    class Fields(argparse.Action):
+        def __call__(self, parser, namespace, values, option_string=None):
+            converted = []
+            for kind, name, text in zip(kinds, self.metavar, values, strict=True):
+                try:
+                    converted.append(kind(text))
+                except (argparse.ArgumentTypeError, ValueError) as exc:
+                    raise argparse.ArgumentError(self, f"{name}: {exc}") from None
+            setattr(namespace, self.dest, converted)
+
+    return Fields
 
 
 def positive_int(text: str) -> int:
