@@ -170,7 +170,8 @@ def batch_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     if actions.shape != shape or actions.dtype.kind not in "fiu":
         raise ValueError(f"actions must be real numbers of shape {shape}, got {actions!r}")
     actions = actions.astype(np.float64)
-    if not np.isfinite(actions).all():
+    total = actions.sum()  # finite only if every entry is (or on overflow: checked then)
+    if not (total - total == 0.0 or np.isfinite(actions).all()):
         raise ValueError(f"actions must be finite, got {actions.tolist()}")
     return actions
 

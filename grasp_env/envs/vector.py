@@ -47,10 +47,15 @@ INFO_VALUES = {"grip_force": kernel.I_GRIP_FORCE} | {
     key: kernel.I_TERMS + i for i, key in enumerate(REWARD_KEYS)
 }
 
-#: The kernel's info columns of the batched entries, flags first: one gather takes them all.
-_COLUMNS = np.array([*INFO_FLAGS.values(), *INFO_VALUES.values()])
-#: The batched entries' keys with their masks' keys, in ``_COLUMNS``' order.
-_KEYS = [(key, f"_{key}") for key in (*INFO_FLAGS, *INFO_VALUES)]
+#: The kernel's info columns a step returns, in one gather: the reward, then the flags
+#: (terminated, truncated and the flags of ``INFO_FLAGS``), then ``INFO_VALUES``.
+_COLUMNS = np.array(
+    [kernel.I_REWARD, kernel.I_TERMINATED, kernel.I_TRUNCATED, *INFO_FLAGS.values(),
+     *INFO_VALUES.values()]
+)  # fmt: skip
+_FLAGS = slice(1, 3 + len(INFO_FLAGS))  # rows of the flags in the gather
+#: The batched entries' keys, in the order of the gather's rows after terminated and truncated.
+_ENTRIES = (*INFO_FLAGS, *INFO_VALUES)
 
 
 class FrictionlessGraspVectorEnv(VectorEnv):
@@ -124,6 +129,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         self._uncertain = first._uncertain
         self._everyone = np.ones(n, dtype=bool)  # the mask of the entries every sub-env has
         self._everyone.flags.writeable = False  # shared by every info dict: nobody changes it
+        self._masks = {f"_{key}": self._everyone for key in _ENTRIES}
 
     # ------------------------------------------------------------------ episodes and rows
     def _load(self, i: int) -> None:
@@ -235,7 +241,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         if self._uncertain:
             self._show_nominal()
         errors = {}
-        for i in np.flatnonzero(self._status) if self._status.any() else ():  # OK is 0
+        for i in np.flatnonzero(self._status) if np.count_nonzero(self._status) else ():  # OK: 0
             episode = self._episode(i)  # Python takes the step over, as the single env does
             self._info[i] = 0.0
             self._seen[i], self._info[i], error = episode.advance(
@@ -270,26 +276,23 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         return jams
 
     def _results(self, errors: dict[int, str], friction_jams: np.ndarray | None):
-        info = self._info
-        observations = self._seen.copy()
-        rewards = info[:, kernel.I_REWARD].copy()
-        terminated = info[:, kernel.I_TERMINATED] != 0.0
-        truncated = info[:, kernel.I_TRUNCATED] != 0.0
-        block = info.T[_COLUMNS]  # a row per batched entry
-        flags, values = block[: len(INFO_FLAGS)] != 0.0, block[len(INFO_FLAGS) :]
-        infos = self._step_infos(flags, values, errors, friction_jams)
-        ended = terminated | truncated
-        if ended.any():  # the final infos are the step's, the others the next episodes' first
+        block = self._info.T[_COLUMNS]  # one copy: a row per returned entry
+        flags = block[_FLAGS] != 0.0  # terminated, truncated, then INFO_FLAGS
+        observations, rewards = self._seen.copy(), block[0]
+        terminated, truncated, values = flags[0], flags[1], block[_FLAGS.stop :]
+        infos = self._step_infos(flags[2:], values, errors, friction_jams)
+        if np.count_nonzero(flags[:2]):  # final infos: the step's; the others: the next episodes'
+            ended = terminated | truncated
             infos["final_obs"], infos["_final_obs"] = observations.copy(), ended.copy()
             infos["final_info"] = self._step_infos(
-                flags.copy(), values.copy(), errors, friction_jams
+                flags[2:].copy(), values.copy(), errors, friction_jams
             )
             infos["_final_info"] = ended.copy()
             for i in np.flatnonzero(ended):
                 obs, reset_info = self.envs[i].reset()
                 self._load(i)
                 observations[i] = obs
-                flags[:, i] = [reset_info[key] for key in INFO_FLAGS]
+                flags[2:, i] = [reset_info[key] for key in INFO_FLAGS]
                 values[:, i] = [reset_info[key] for key in INFO_VALUES]
         return observations, rewards, terminated, truncated, infos
 
@@ -300,12 +303,9 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         """The batched entries of a step's infos: each flag and value a row of ``flags`` and
         ``values`` (a row per key of ``INFO_FLAGS`` and ``INFO_VALUES``), each mask the
         read-only mask of every sub-env."""
-        everyone = self._everyone
-        out: dict[str, np.ndarray] = {}
+        out = dict(zip(_ENTRIES, (*flags, *values), strict=True)) | self._masks
         if friction_jams is not None:
-            out["friction_jam"], out["_friction_jam"] = friction_jams.copy(), everyone
-        for (key, mask), row in zip(_KEYS, [*flags, *values], strict=True):
-            out[key], out[mask] = row, everyone
+            out["friction_jam"], out["_friction_jam"] = friction_jams.copy(), self._everyone
         if errors:
             out["sim_error"] = np.array([errors.get(i) for i in range(self.num_envs)], object)
             out["_sim_error"] = np.isin(np.arange(self.num_envs), list(errors))
@@ -313,9 +313,7 @@ class FrictionlessGraspVectorEnv(VectorEnv):
 
     def _merged(self, infos: list[dict]) -> dict[str, np.ndarray]:
         """The reset infos of the sub-envs as arrays (the batched entries of a step)."""
-        out: dict[str, np.ndarray] = {}
-        for key, mask in _KEYS:
-            out[key], out[mask] = np.array([info[key] for info in infos]), self._everyone
+        out = {key: np.array([info[key] for info in infos]) for key in _ENTRIES} | self._masks
         errors = [info.get("sim_error") for info in infos]
         if any(e is not None for e in errors):
             out["sim_error"] = np.array(errors, dtype=object)
