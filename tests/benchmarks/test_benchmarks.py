@@ -231,9 +231,11 @@ def test_suite_refuses_a_bad_out_before_running(tmp_path, capsys):
     not_a_dir = tmp_path / "file"
     not_a_dir.write_text("")
     for out in (not_a_dir, not_a_dir / "sub"):
-        assert run_suite(["--only", "memory", "--out", str(out)]) == 2
-        err = capsys.readouterr().err
-        assert err.count("\n") == 1 and str(out) in err
+        with pytest.raises(SystemExit) as info:
+            run_suite(["--only", "memory", "--out", str(out)])
+        assert info.value.code == 2
+        last = capsys.readouterr().err.splitlines()[-1]
+        assert last.startswith("python -m benchmarks: error: --out") and str(out) in last
     assert not (tmp_path / "memory.md").exists()
 
 
