@@ -185,8 +185,6 @@ def _one_thread() -> None:
     torch.set_num_threads(1)
 
 
-#: Most ``--workers`` accepted: 4 processes per CPU. More only queue for the CPUs, each one
-#: holding an env, a torch runtime and the agents in memory.
 #: The project's docs, whose ``training.md`` a results page links to wherever it is written.
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 

@@ -83,6 +83,7 @@ from grasp_env.cli import (
     existing_file,
     nonnegative_int,
     out_dir_problem,
+    positive_float,
     positive_int,
     seed_int,
     workers,
@@ -99,16 +100,6 @@ def _net_arch(text: str) -> list[int]:
     return sizes
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
-    return value
-
-
 # ---------------------------------------------------------------------- main
 #: The expert data's numbers: flag, type, default, help.
 EXPERT_OPTIONS = (
@@ -123,16 +114,16 @@ TRAINING_OPTIONS = (
     ("--dagger-episodes", positive_int, 60, "network episodes per round"),
     ("--query-every", positive_int, 4, "the expert labels every this many visited states"),
     ("--epochs", positive_int, 30, "BC epochs (first fit)"),
-    ("--dagger-weight", _positive_float, 1.0,
+    ("--dagger-weight", positive_float, 1.0,
      "weight of a DAgger label in the loss, against 1 for an expert episode's sample"),
     ("--dagger-epochs", positive_int, 15, "BC epochs after each round"),
     ("--batch-size", positive_int, 256, "BC batch size"),
-    ("--lr", _positive_float, 1e-3, "BC learning rate (Adam)"),
+    ("--lr", positive_float, 1e-3, "BC learning rate (Adam)"),
     ("--net-arch", _net_arch, "256,256", "hidden sizes, e.g. 256,256"),
     ("--workers", workers, 2, "processes for episodes"),
-    ("--collect-minutes", _positive_float, None,
+    ("--collect-minutes", positive_float, None,
      "stop starting expert episodes after this wall time (default: none)"),
-    ("--max-minutes", _positive_float, None,
+    ("--max-minutes", positive_float, None,
      "start no DAgger episode or round after this wall time (default: none)"),
     ("--threads", positive_int, 1, "torch threads for BC"),
 )  # fmt: skip

@@ -48,7 +48,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 from agents import config
 from agents.callbacks import ProgressLines, WallTimeLimit, timed
 from agents.models import MODEL_DIR, SHIPPED, export_model, shipped_name
-from grasp_env.cli import HelpFormatter, out_dir_problem, positive_int, seed_int
+from grasp_env.cli import HelpFormatter, out_dir_problem, positive_float, positive_int, seed_int
 from grasp_env.envs import ENV_ID
 
 #: What ``benchmarks`` import from here.
@@ -245,16 +245,6 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not 0 < value < math.inf:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
-
-
 # fmt: off
 def parser() -> argparse.ArgumentParser:
     p = _Parser(prog="python -m agents.train_ppo", formatter_class=HelpFormatter, description=(
@@ -271,7 +261,7 @@ def parser() -> argparse.ArgumentParser:
     add("--seed", type=seed_int, default=0, metavar="N", help="training env k is seeded seed + k")
     add("-n", "--n-timesteps", type=positive_int, metavar="N",
         help="total env steps (default: the entry's n_timesteps)")
-    add("--max-minutes", type=_positive_float, metavar="M",
+    add("--max-minutes", type=positive_float, metavar="M",
         help="stop after M minutes of wall time (the model is saved as it is then)")
     add("--params", "--hyperparams", "-params", dest="hyperparams", nargs="+", action=Hyperparams,
         metavar="KEY:VALUE",
@@ -319,9 +309,10 @@ def main(argv: list[str] | None = None) -> None:
             trained_agent_dir(args.trained_agent)
     except ValueError as exc:
         p.error(str(exc))
-    # the arguments agree; now the folders (made here)
-    for option, folder in (("--out", args.out), ("-f", args.log_folder)):
-        if folder is not None and (problem := out_dir_problem(Path(folder))):
+    # the arguments agree; now the folders (the log folder made here, the model's after
+    # training, so that an interrupted run leaves none behind)
+    for option, folder, create in (("--out", args.out, False), ("-f", args.log_folder, True)):
+        if folder is not None and (problem := out_dir_problem(Path(folder), create)):
             p.error(f"{option} {problem}")
     run = train(**vars(args))
     stats = json.loads((run / "train_stats.json").read_text())

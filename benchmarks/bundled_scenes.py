@@ -22,7 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from benchmarks.common import BudgetExceeded, headless, parser, table, time_limit, write
-from grasp_env.cli import workers
+from grasp_env.cli import seconds, workers
 
 STARTS = ("scene", "preliftoff")
 #: CPU seconds fig13's whole plan may take (the paper's VAX took 0.153 s).
@@ -349,13 +349,9 @@ def main(argv: list[str] | None = None) -> int:
         "--timeline", default="fig13", choices=grasp_env.bundled_scenes(),
         help="the scene whose plan is tabled step by step beside the paper's Fig. 13",
     )  # fmt: skip
-    ap.add_argument("--timeout", type=float, default=600.0, help="wall seconds a plan or episode")
+    ap.add_argument("--timeout", type=seconds, default=600.0, help="wall seconds a plan or episode")
     ap.add_argument("--workers", type=workers, default=2, help="processes")
     args = ap.parse_args(argv)
-    if args.workers < 1:
-        ap.error(f"--workers must be >= 1, got {args.workers}")
-    if not args.timeout > 0:
-        ap.error(f"--timeout must be > 0, got {args.timeout}")
     page = run(args.out, args.timeline, args.timeout, args.workers)
     print(page.read_text())
     return 0

@@ -26,7 +26,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from benchmarks.common import BudgetExceeded, headless, parser, table, time_limit, write
-from grasp_env.cli import positive_float, positive_int, workers
+from grasp_env.cli import positive_int, seconds, workers
 
 SUITES = ("heldout", "wide", "small")
 #: Targets of every suite: the share of tippable shapes lifted, and a plan's CPU seconds
@@ -386,9 +386,7 @@ def main(argv: list[str] | None = None) -> int:
         "palm widths wide, where the planner fails)",
     )  # fmt: skip
     ap.add_argument("--env", action="store_true", help="also the scripted policy in the env")
-    ap.add_argument(
-        "--timeout", type=positive_float, default=120.0, help="wall seconds a plan or episode"
-    )
+    ap.add_argument("--timeout", type=seconds, default=120.0, help="wall seconds a plan or episode")
     ap.add_argument("--workers", type=workers, default=2, help="processes")
     args = ap.parse_args(argv)
     page = run(args.out, args.shapes, tuple(args.suites), args.env, args.timeout, args.workers)

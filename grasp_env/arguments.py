@@ -29,14 +29,22 @@ def is_real(value: Any) -> bool:
     return isinstance(value, REAL_TYPES) and not isinstance(value, bool)
 
 
+def unmasked(value: Any, what: str) -> Any:
+    """``value``, or the data of a masked array with nothing masked; ``ValueError``
+    (``what``, then the masked value) where entries are masked: a masked entry has no
+    value to act on."""
+    if isinstance(value, np.ma.MaskedArray):
+        if np.ma.is_masked(value):
+            raise ValueError(f"{what}, got masked entries: {short(value)}")
+        return value.data
+    return value
+
+
 def real_vector(value: Any, name: str, size: int) -> np.ndarray:
     """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``
     and showing the value: a sequence of real numbers or an int or float array (a masked one
     only with nothing masked)."""
-    if isinstance(value, np.ma.MaskedArray):
-        if np.ma.is_masked(value):
-            raise ValueError(f"{name} must be {size} real numbers, got masked entries: {value}")
-        value = value.data
+    value = unmasked(value, f"{name} must be {size} real numbers")
     is_array = isinstance(value, np.ndarray)
     try:
         arr = value if is_array else np.asarray(value, dtype=object)

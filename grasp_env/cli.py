@@ -31,11 +31,15 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
-def out_dir_problem(path: Path) -> str | None:
-    """Why results cannot go to folder ``path`` (created if missing), or None if they can:
-    checked before any work starts."""
+def out_dir_problem(path: Path, create: bool = True) -> str | None:
+    """Why results cannot go to folder ``path``, or None if they can: checked before any
+    work starts. A missing folder is created, or with ``create=False`` only checked to be
+    creatable (for a folder written only when the work is done, which an interrupted run
+    must not leave behind empty)."""
     if path.exists() and not path.is_dir():
         return f"{path} exists and is not a directory"
+    if not create:
+        return _folder_problem(path, path)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -54,13 +58,21 @@ def file_problem(path: Path, make_folder: bool = True) -> str | None:
         return f"{path} is a directory"
     if path.exists() and not os.access(path, os.W_OK):
         return f"{path} is not writable"
+    if not make_folder and path.parent.exists() and not path.parent.is_dir():
+        return f"{path}: its folder {path.parent} is not a directory"
     if not make_folder and not path.parent.is_dir():
         return f"{path}: its folder {path.parent} does not exist"
-    folder = next(p for p in (path.parent, *path.parent.parents) if p.exists())
-    if not folder.is_dir():
-        return f"{path}: {folder} is not a directory"
-    if not os.access(folder, os.W_OK | os.X_OK):
-        return f"{path}: {folder} is not writable"
+    return _folder_problem(path, path.parent)
+
+
+def _folder_problem(path: Path, folder: Path) -> str | None:
+    """Why ``folder`` (for ``path``) cannot be made or written in: its nearest existing
+    folder (itself where it exists) is not a writable directory. Creates nothing."""
+    existing = next(p for p in (folder, *folder.parents) if p.exists())
+    if not existing.is_dir():
+        return f"{path}: {existing} is not a directory"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"{path}: {existing} is not writable"
     return None
 
 
@@ -168,6 +180,21 @@ def positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return value
+
+
+#: Longest wall-clock limit a command takes, in seconds (about 11 days): the alarm that
+#: enforces it takes no more than the platform's time_t (about 9.2e9 s), and no run is meant
+#: to take longer.
+MAX_SECONDS = 1e6
+
+
+def seconds(text: str) -> float:
+    """An ``argparse`` type: a time limit in seconds, a number > 0 and at most
+    ``MAX_SECONDS``."""
+    value = positive_float(text)
+    if value > MAX_SECONDS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_SECONDS:g} s, got {text!r}")
     return value
 
 

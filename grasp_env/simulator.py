@@ -212,11 +212,8 @@ class Simulator:
         support or each other by more than the contact tolerance (the simulator moves bodies
         that touch; it does not separate overlapping ones)."""
         q_name, h_name = names
-        for name, angle in ((f"{q_name}[2]", object_pose[2]), (f"{h_name}[2]", hand[2])):
-            if not abs(angle) <= MAX_ANGLE:
-                raise ValueError(
-                    f"{name} must be an angle within [-2 pi, 2 pi], got {float(angle)!r}"
-                )
+        _check_angle(f"{q_name}[2]", object_pose[2])
+        _check_angle(f"{h_name}[2]", hand[2])
         low, high = self.scene.joint_limits.T
         if np.any(hand[3:] < low) or np.any(hand[3:] > high):
             raise ValueError(
@@ -250,8 +247,9 @@ class Simulator:
         Raises:
             TypeError: ``state`` is not a :class:`~grasp_env.core.state.State`.
             ValueError: ``state`` is of another scene (a scene loaded again is another one);
-                a state built by hand that :meth:`check_start` refuses; a palm target farther
-                from the palm than :attr:`max_travel`.
+                a state built by hand that :meth:`check_start` refuses; a palm angle beyond
+                2 pi in magnitude; a palm target farther from the palm than
+                :attr:`max_travel`.
             WorkLimitError: the move needs more than ``max_solves`` pose solves (or
                 ``max_iterations`` increments, or stalls).
             SimulationError: a solve failed, and again on the reference LP path with smaller
@@ -263,6 +261,7 @@ class Simulator:
         target = state.hand.tolist()
         if palm is not None:
             target[:3] = _finite_floats(palm, 3, "palm")
+            _check_angle("palm[2]", target[2])
             self._check_travel(state.hand, target)
         joint_limit = False
         if fingers is not None:  # clipped to the joint limits
@@ -421,6 +420,13 @@ def own_state(state: State, scene: Scene) -> None:
             f"state is of scene {state.scene.name!r}, not of {scene.name!r}, the scene it is "
             "to move in (a scene loaded again is another scene)"
         )
+
+
+def _check_angle(name: str, angle: float) -> None:
+    """Refuse (``ValueError`` naming ``name``) an angle beyond 2 pi in magnitude, the scene
+    schema's bound: a state the simulator makes is one it moves from again."""
+    if not abs(angle) <= MAX_ANGLE:
+        raise ValueError(f"{name} must be an angle within [-2 pi, 2 pi], got {float(angle)!r}")
 
 
 def _finite_floats(value, size: int, name: str) -> tuple | list:

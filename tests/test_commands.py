@@ -137,6 +137,10 @@ def test_bad_numbers_are_usage_errors(main, argv, needle, capsys):
             r"--replay: SEED: expected an integer, got 'x'",
         ),
         ("benchmarks.scripted_speedup", ["--base", "nosuchrev"], r"--base: 'nosuchrev' is not a"),
+        ("benchmarks.bundled_scenes", ["--timeout", "inf"], r"--timeout: expected a finite"),
+        ("benchmarks.bundled_scenes", ["--timeout", "1e10"], r"--timeout: expected at most 1e"),
+        ("benchmarks.planner_shapes", ["--timeout", "1e10"], r"--timeout: expected at most 1e"),
+        ("benchmarks.planner_shapes", ["--timeout", "0"], r"--timeout: expected a finite"),
     ],
 )
 def test_bad_values_are_usage_errors(main, argv, needle, capsys):
@@ -206,6 +210,11 @@ def _usage_error(main, argv, needle, paths, capsys):
             ["--scene", "fig13", "--friction-page", "{missing}/f.md"],
             r"--friction-page {missing}/f.md: its folder {missing} does not exist",
         ),
+        (
+            "agents.scripted",
+            ["--scene", "fig13", "--friction-page", "{file}/f.md"],
+            r"--friction-page {file}/f.md: its folder {file} is not a directory",
+        ),
         ("agents.imitation", ["--data", "{empty}"], r"--data '{empty}' is not an .npz file"),
         ("agents.imitation", ["--data", "{other}"], r"--data '{other}' has no obs, act, round"),
         (
@@ -229,6 +238,7 @@ def test_bad_files_are_usage_errors(main, argv, needle, paths, capsys):
         ("agents.train_ppo", ["--seed", "-1"], r"--seed: expected a seed >= 0, got '-1'"),
         ("agents.train_ppo", ["-f", "{file}"], r"-f {file} exists and is not a directory"),
         ("agents.train_ppo", ["--out", "{file}"], r"--out {file} exists and is not a directory"),
+        ("agents.train_ppo", ["--out", "{file}/m"], r"--out {file}/m: {file} is not a directory"),
         ("agents.train_ppo", ["--conf", "{latin1}"], r"--conf config file '{latin1}' is not UTF-8"),
         ("benchmarks.ppo_throughput", ["--entry", "nope"], r"--entry: env id 'nope' is not in"),
     ],
@@ -266,3 +276,20 @@ def test_help_says_what_options_are(main, shown, capsys):
     assert info.value.code == 0
     out = " ".join(capsys.readouterr().out.split())
     assert shown in out and "printed only" not in out
+
+
+def test_train_ppo_makes_the_model_folder_only_when_it_writes_the_model(tmp_path, monkeypatch):
+    """An interrupted run leaves no empty model folder behind (with ``--update-shipped`` it
+    would be one in the repository): ``--out`` is checked before training and made after."""
+    pytest.importorskip("rl_zoo3")
+    import agents.train_ppo as train_ppo
+
+    def interrupted(**kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(train_ppo, "train", interrupted)
+    out = tmp_path / "new" / "model"
+    with pytest.raises(KeyboardInterrupt):
+        train_ppo.main(["--out", str(out), "-f", str(tmp_path / "logs")])
+    assert not (tmp_path / "new").exists()
+    assert (tmp_path / "logs").is_dir()  # the log folder is the run's, made before it

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from grasp_env.arguments import number, real_vector, short
+from grasp_env.arguments import number, real_vector, short, unmasked
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import LENGTH_RANGE, MAX_ANGLE, Scene
 from grasp_env.core.scene_loading import load_scene
@@ -162,16 +162,11 @@ def batch_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     """A batch of actions as float64, refused (``ValueError`` naming ``actions``) unless it is
     finite real numbers of ``shape`` (a masked array only with nothing masked; the kernel
     clips them into [-1, 1])."""
-    if isinstance(actions, np.ma.MaskedArray):
-        if np.ma.is_masked(actions):
-            raise ValueError(f"actions must be real numbers of shape {shape}, got masked entries")
-        actions = actions.data
-    actions = np.asarray(actions)
+    actions = np.asarray(unmasked(actions, f"actions must be real numbers of shape {shape}"))
     if actions.shape != shape or actions.dtype.kind not in "fiu":
         raise ValueError(f"actions must be real numbers of shape {shape}, got {actions!r}")
     actions = actions.astype(np.float64)
-    total = actions.sum()  # finite only if every entry is (or on overflow: checked then)
-    if not (total - total == 0.0 or np.isfinite(actions).all()):
+    if not np.isfinite(actions).all():
         raise ValueError(f"actions must be finite, got {actions.tolist()}")
     return actions
 

@@ -164,8 +164,7 @@ def test_scaled_scene_gives_the_same_episode(env_id: str, kwargs: dict, k: float
     the object at a fold of the contact equations, where the least total force in
     equilibrium jumps between contact subsets as the normals turn concurrent (lifting from
     the placement at k = 1e5: 2.5 object weights on two of three contacts, or 5.6e6 on all
-    three,
-    for poses that differ at the contact tolerance). There the forces are checked to be
+    three, for poses that differ at the contact tolerance). There the forces are checked to be
     forces (within the observation's range); the jam itself, the pose and the rest agree."""
     for seed in (0, 1):
         a = _episode(env_id, kwargs, 1.0, seed)

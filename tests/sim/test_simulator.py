@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import dataclasses
 import itertools
 import json
 import math
@@ -1744,6 +1745,21 @@ def test_settle_refuses_angles_beyond_two_pi() -> None:
         sim.settle(start.object_pose, start.hand + np.array([0.0, 0.0, -6.5, 0.0, 0.0]))
 
 
+def test_a_palm_angle_beyond_two_pi_is_refused() -> None:
+    """Every state a move makes is one the simulator moves from again: a palm target's
+    angle beyond the scene schema's 2 pi is refused, as ``settle`` refuses such a hand."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    x, y = start.hand[:2]
+    lifted = sim.move_hand(start, palm=(x, y + 5.0, 0.0))  # the palm far above the object
+    for angle in (7.0, -6.5, 2 * np.pi + 1e-9):
+        with pytest.raises(ValueError, match=r"^palm\[2\] must be an angle .*" + str(angle)[:4]):
+            sim.move_hand(lifted, palm=(x, y + 5.0, angle))
+    turned = sim.move_hand(lifted, palm=(x, y + 5.0, 2 * np.pi))  # the bound itself is allowed
+    assert turned.hand[2] == 2 * np.pi
+    sim.move_hand(dataclasses.replace(turned), palm=(x, y + 5.0, 0.0))  # and moved from again
+
+
 @pytest.mark.parametrize("far", [1e6, 1e15, 1e20, -1e300])
 def test_a_palm_target_beyond_what_a_move_resolves_is_refused(far: float) -> None:
     """A move's rounding along its path parameter (2.2e-16 of its length) must stay below
@@ -1754,9 +1770,11 @@ def test_a_palm_target_beyond_what_a_move_resolves_is_refused(far: float) -> Non
     start = sim.reset()
     assert sim.max_travel == pytest.approx(1e-9 / (16 * 2.220446049250313e-16))
     x, y, th = start.hand[:3]
-    for palm in ((x + far, y, th), (x, y + abs(far), th), (x, y, th + far)):
+    for palm in ((x + far, y, th), (x, y + abs(far), th)):
         with pytest.raises(ValueError, match=r"^palm target .* farther than a move can"):
             sim.move_hand(start, palm=palm)
+    with pytest.raises(ValueError, match=r"^palm\[2\] must be an angle"):  # 2 pi comes first
+        sim.move_hand(start, palm=(x, y, th + far))
     fine = Simulator(scene_of("fig13"), contact_tol=1e-6)
     assert fine.max_travel == pytest.approx(1e3 * sim.max_travel)
     state = sim.move_hand(start, palm=(x, y + 0.1, th))  # a move within it still runs
