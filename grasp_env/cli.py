@@ -58,10 +58,9 @@ def file_problem(path: Path, make_folder: bool = True) -> str | None:
         return f"{path} is a directory"
     if path.exists() and not os.access(path, os.W_OK):
         return f"{path} is not writable"
-    if not make_folder and path.parent.exists() and not path.parent.is_dir():
-        return f"{path}: its folder {path.parent} is not a directory"
     if not make_folder and not path.parent.is_dir():
-        return f"{path}: its folder {path.parent} does not exist"
+        what = "is not a directory" if path.parent.exists() else "does not exist"
+        return f"{path}: its folder {path.parent} {what}"
     return _folder_problem(path, path.parent)
 
 
@@ -98,18 +97,18 @@ def out_file(text: str) -> Path:
 
 def existing_file(text: str) -> Path:
     """An ``argparse`` type: the path of a file that exists."""
-    path = Path(text)
-    if not path.is_file():
-        what = "not a file" if path.exists() else "no such file"
-        raise argparse.ArgumentTypeError(f"{what}: {text!r}")
-    return path
+    return _existing(text, Path.is_file, "file")
 
 
 def existing_dir(text: str) -> Path:
     """An ``argparse`` type: the path of a directory that exists."""
+    return _existing(text, Path.is_dir, "directory")
+
+
+def _existing(text: str, is_kind: Callable[[Path], bool], kind: str) -> Path:
     path = Path(text)
-    if not path.is_dir():
-        what = "not a directory" if path.exists() else "no such directory"
+    if not is_kind(path):
+        what = f"not a {kind}" if path.exists() else f"no such {kind}"
         raise argparse.ArgumentTypeError(f"{what}: {text!r}")
     return path
 
