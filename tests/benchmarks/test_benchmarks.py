@@ -139,6 +139,22 @@ def test_random_actions_are_seeded_draws_within_the_space():
     assert batched.random_actions(cartpole, 4).shape == (4, 2)
 
 
+def test_paired_ratios_divide_ours_by_the_baseline_whichever_runs_first(monkeypatch):
+    ours, baseline = object(), object()
+    order = []
+    speeds = iter([10.0, 5.0, 4.0, 12.0, 9.0, 3.0])  # rates in the order they are measured
+
+    def rate(venv, budget, seed):
+        order.append((venv, seed))
+        return next(speeds)
+
+    monkeypatch.setattr(batched, "rate", rate)
+    ratios = batched.paired_ratios(ours, baseline, 3, 0.1)
+    # pair 0: ours then baseline, pair 1: baseline then ours, pair 2: ours then baseline
+    assert order == [(ours, 0), (baseline, 0), (baseline, 1), (ours, 1), (ours, 2), (baseline, 2)]
+    assert ratios == [10.0 / 5.0, 12.0 / 4.0, 9.0 / 3.0]
+
+
 def test_profile_baseline_columns(tmp_path):
     first = profile_step.run(True, tmp_path / "a.md", steps=2, closing=False)
     second = profile_step.run(
