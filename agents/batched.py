@@ -19,7 +19,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from grasp_env.arguments import integer
 from grasp_env.envs import VECTOR_ENTRY_POINT
-from grasp_env.envs.vector import INFO_FLAGS, INFO_VALUES, FrictionlessGraspVectorEnv
+from grasp_env.envs.vector import INFO_FLAGS, INFO_VALUES, MAX_ENVS, FrictionlessGraspVectorEnv
 
 
 class BatchedVecEnv(VecEnv):
@@ -34,10 +34,17 @@ class BatchedVecEnv(VecEnv):
     def reset(self) -> np.ndarray:
         seeds = self._seeds if any(s is not None for s in self._seeds) else None
         options = self._options[0] if self._options and self._options[0] else None
-        obs, _ = self.venv.reset(seed=seeds, options=options)
-        self._reset_seeds()
-        self._reset_options()
+        try:
+            obs, _ = self.venv.reset(seed=seeds, options=options)
+        finally:  # used once, even by a reset that refuses them: the next one can go on
+            self._reset_seeds()
+            self._reset_options()
         return obs
+
+    def seed(self, seed: int | None = None) -> list[int | None]:
+        """SB3's seeding (sub-env ``i`` gets ``seed + i`` at the next reset), ``seed`` None
+        or an integer >= 0 (``ValueError`` otherwise)."""
+        return super().seed(None if seed is None else integer(seed, "seed", 0))
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
@@ -69,11 +76,14 @@ class BatchedVecEnv(VecEnv):
         return [] if frames is None else list(frames)
 
     def _indices(self, indices) -> list[int]:
+        """The sub-envs ``indices`` names (None: all), each checked to be one."""
         if indices is None:
             return list(range(self.num_envs))
-        if isinstance(indices, int):
-            return [indices]
-        return list(indices)
+        try:
+            chosen = [indices] if isinstance(indices, int | np.integer) else list(indices)
+        except TypeError:  # neither an index nor a sequence of them
+            chosen = [indices]
+        return [integer(i, "indices", 0, most=self.num_envs - 1) for i in chosen]
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
         return [getattr(self.venv.sub_env(i), attr_name) for i in self._indices(indices)]
@@ -101,9 +111,15 @@ def make_vec_env(
     with ``seed + i`` at the first reset (SB3's ``make_vec_env`` convention). ``ValueError``
     names ``n_envs`` below 1, ``seed`` other than None or an integer >= 0, and an ``env_id``
     that has no batched env."""
-    n_envs = integer(n_envs, "n_envs", 1)  # named as the caller named it
+    n_envs = integer(n_envs, "n_envs", 1, most=MAX_ENVS)  # named as the caller named it
     seed = None if seed is None else integer(seed, "seed", 0)
-    if gym.spec(env_id).vector_entry_point != VECTOR_ENTRY_POINT:
+    if "num_envs" in env_kwargs:
+        raise TypeError("make_vec_env takes the number of envs as n_envs, not num_envs")
+    try:
+        spec = gym.spec(env_id) if isinstance(env_id, str) else None
+    except gym.error.Error:
+        spec = None
+    if spec is None or spec.vector_entry_point != VECTOR_ENTRY_POINT:
         raise ValueError(f"env_id {env_id!r} has no batched env (not one of grasp_env's ids)")
     venv = gym.make_vec(env_id, num_envs=n_envs, threads=threads, **env_kwargs)
     vec = BatchedVecEnv(venv)

@@ -42,28 +42,37 @@ def unmasked(value: Any, what: str) -> Any:
 
 def real_vector(value: Any, name: str, size: int) -> np.ndarray:
     """``value`` as a new array of ``size`` finite floats, or ``ValueError`` naming ``name``
-    and showing the value: a sequence of real numbers or an int or float array (a masked one
-    only with nothing masked)."""
-    value = unmasked(value, f"{name} must be {size} real numbers")
+    and showing the value (:func:`real_array`)."""
+    return real_array(value, name, (size,), f"{size} real numbers")
+
+
+def real_array(value: Any, name: str, shape: tuple[int, ...], what: str = "") -> np.ndarray:
+    """``value`` as a new float array of ``shape``, finite, or
+    ``ValueError`` naming ``name`` and showing the value: nested sequences of real numbers
+    or an int or float array (a masked one only with nothing masked). ``what`` says what
+    is expected (default: real numbers of ``shape``)."""
+    what = what or f"real numbers of shape {shape}"
+    value = unmasked(value, f"{name} must be {what}")
     is_array = isinstance(value, np.ndarray)
     try:
         arr = value if is_array else np.asarray(value, dtype=object)
     except (TypeError, ValueError):  # nesting numpy cannot even hold as objects
-        raise ValueError(f"{name} must be {size} real numbers, got {short(value)}") from None
-    if arr.shape != (size,):
-        raise ValueError(
-            f"{name} must be {size} real numbers, got {short(value)} of shape {arr.shape}"
-        )
-    if not (arr.dtype.kind in REAL_KINDS if is_array else all(map(is_real, arr))):
+        raise ValueError(f"{name} must be {what}, got {short(value)}") from None
+    if arr.shape != shape:
+        raise ValueError(f"{name} must be {what}, got {short(value)} of shape {arr.shape}")
+    if not (arr.dtype.kind in REAL_KINDS if is_array else all(map(is_real, arr.flat))):
         raise ValueError(
             f"{name} must be real numbers (int or float; not bool, str, complex or object), "
             f"got {short(value)}"
         )
-    try:
-        with np.errstate(over="ignore"):
-            arr = arr.astype(float)
-    except OverflowError:  # an int beyond the float range
-        arr = np.full(size, math.inf)
+    if is_array and arr.dtype.itemsize <= 8:
+        arr = arr.astype(float)  # no wider than a float: nothing overflows
+    else:
+        try:
+            with np.errstate(over="ignore"):  # a long double beyond the float range
+                arr = arr.astype(float)
+        except OverflowError:  # a Python int beyond the float range
+            arr = np.full(shape, math.inf)
     if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got {short(value)}")
     return arr

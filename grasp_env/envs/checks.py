@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from grasp_env.arguments import number, real_vector, short, unmasked
+from grasp_env.arguments import number, real_array, real_vector, short
 from grasp_env.core import kinematics as kin
 from grasp_env.core.scene import LENGTH_RANGE, MAX_ANGLE, Scene
 from grasp_env.core.scene_loading import load_scene
@@ -160,15 +160,9 @@ def action_values(action: Any, size: int) -> list[float]:
 
 def batch_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     """A batch of actions as float64, refused (``ValueError`` naming ``actions``) unless it is
-    finite real numbers of ``shape`` (a masked array only with nothing masked; the kernel
+    finite real numbers of ``shape`` (:func:`grasp_env.arguments.real_array`; the kernel
     clips them into [-1, 1])."""
-    actions = np.asarray(unmasked(actions, f"actions must be real numbers of shape {shape}"))
-    if actions.shape != shape or actions.dtype.kind not in "fiu":
-        raise ValueError(f"actions must be real numbers of shape {shape}, got {actions!r}")
-    actions = actions.astype(np.float64)
-    if not np.isfinite(actions).all():
-        raise ValueError(f"actions must be finite, got {actions.tolist()}")
-    return actions
+    return real_array(actions, "actions", shape)
 
 
 def env_scene(spec: Any, name: str, max_vertices: int, start: str, contact_tol: float) -> Scene:

@@ -35,6 +35,9 @@ from grasp_env.kernel import step as kernel
 from grasp_env.kernel.batch import step_batch
 from grasp_env.sim import move
 
+#: Most sub-envs a batched env takes: each takes about 20 kilobytes and a few milliseconds
+#: to make, so a count far beyond would run out of memory or time before it is refused.
+MAX_ENVS = 65536
 #: The info entries of a step, as arrays over the sub-envs, and where the kernel holds them.
 INFO_FLAGS = {
     "is_success": kernel.I_SUCCESS,
@@ -87,10 +90,12 @@ class FrictionlessGraspVectorEnv(VectorEnv):
         self, num_envs: int, *, max_episode_steps: int | None = None, threads: int | None = None,
         **kwargs: Any,
     ) -> None:  # fmt: skip
-        self.num_envs = integer(num_envs, "num_envs", 1)
+        self.num_envs = integer(num_envs, "num_envs", 1, most=MAX_ENVS)
         if max_episode_steps is not None:  # as gymnasium's TimeLimit on a single env
             steps = integer(max_episode_steps, "max_episode_steps", 1)
             limit = kwargs.get("time_limit")
+            if limit is not None:  # checked as the single env checks it, before comparing
+                limit = integer(limit, "time_limit", 1)
             kwargs["time_limit"] = steps if limit is None else min(steps, limit)
         self.threads = (
             numba.config.NUMBA_NUM_THREADS
@@ -332,8 +337,10 @@ class FrictionlessGraspVectorEnv(VectorEnv):
 
     def sub_env(self, i: int) -> FrictionlessGraspEnv:
         """Sub-env ``i``, its episode brought up to the batch's: its ``state``, ``simulator``
-        and ``simulate_action`` are what a planner reads (read them, do not step it)."""
-        self._episode(i)
+        and ``simulate_action`` are what a planner reads (read them, do not step it); before
+        the first reset, as a single env is before its own (no state yet)."""
+        if self.envs[i]._episode is not None:
+            self._episode(i)
         return self.envs[i]
 
     def close_extras(self, **kwargs: Any) -> None:

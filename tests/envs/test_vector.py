@@ -4,6 +4,8 @@ bit for bit, through resets, failures and any number of threads."""
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -183,6 +185,10 @@ def test_bad_actions_are_refused_and_change_nothing() -> None:
         np.array([["a", "b"], ["c", "d"]]),
         [[1.0, np.inf], [0.0, 0.0]],
         np.ma.array(np.zeros((2, 2)), mask=[[1, 0], [0, 0]]),
+        [[0.0, 0.0], [0.0]],  # ragged
+        [[True, False], [0.1, 0.2]],  # a bool among numbers, as the single env refuses it
+        np.zeros((2, 2), dtype=bool),
+        [[1.0, 2**2000], [0.0, 0.0]],  # beyond the float range
     ]
     for actions_ in bad:
         with pytest.raises(ValueError, match="actions"):
@@ -192,6 +198,24 @@ def test_bad_actions_are_refused_and_change_nothing() -> None:
     for x, y in zip(got[:4], want[:4], strict=True):
         np.testing.assert_array_equal(x, y)
     assert got[4].keys() == want[4].keys()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"max_episode_steps": 10, "time_limit": math.nan}, "time_limit"),
+        ({"max_episode_steps": 10, "time_limit": "x"}, "time_limit"),
+        ({"max_episode_steps": 10, "time_limit": 0}, "time_limit"),
+        ({"num_envs": 10**30}, "num_envs"),
+        ({"num_envs": 0}, "num_envs"),
+    ],
+)
+def test_bad_arguments_are_named(kwargs, name) -> None:
+    """Each argument is checked before it is used: a time limit before the sooner of it and
+    ``max_episode_steps`` is taken, a count of sub-envs before any is made."""
+    kwargs = {"num_envs": 2} | kwargs
+    with pytest.raises(ValueError, match=rf"^{name} must be an integer"):
+        gym.make_vec("FrictionlessGrasp-v0", **kwargs)
 
 
 def test_render_gives_a_frame_per_sub_env() -> None:
