@@ -448,3 +448,55 @@ def test_a_fold_is_a_jam_whatever_the_rounding(scale: float, dx: float) -> None:
     np.testing.assert_allclose(
         (end.object_pose - [dx * scale, 0.0, 0.0]) / [scale, scale, 1.0], ref.object_pose, atol=1e-6
     )
+
+
+def _jammed_at_a_fold() -> tuple[Simulator, grasp_env.State]:
+    """A pentagon squeezed (finger 1 closing faster) until the hand jams with a fingertip of
+    zero force and the contacts dependent to about 3e-10, then the palm raised: a jammed
+    state on a fold."""
+    scene = {
+        "name": "pentagon_at_a_fold",
+        "gravity": 9.81,
+        "palm": {"width": 1.0, "thickness": 0.15, "pose": [-0.07856536427993029, 0.71, 0.0]},
+        "fingers": [
+            {"length": 0.6, "thickness": 0.05, "angle": -math.pi / 2, "torque_limits": [-50, 50]},
+            {"length": 0.7, "thickness": 0.05, "angle": -math.pi / 2, "torque_limits": [-50, 50]},
+        ],
+        "object": {
+            "vertices": [
+                [-0.18665325736297378, 0.2763000833782986],
+                [-0.2355220607041395, 0.0],
+                [0.11269263688838925, 0.0],
+                [0.17500678607058906, 0.07854049000830643],
+                [0.134475895108135, 0.2997668322607216],
+            ]
+        },
+    }
+    sim = Simulator(scene)
+    state, h = sim.reset(), sim.scene.initial_hand.copy()
+    for k in range(13):
+        h = h.copy()
+        if k < 10:
+            h[3] += 0.08
+            h[4] -= 0.05
+        else:
+            h[1] += 0.05
+        state = sim.move_hand(state, palm=h[:3], fingers=h[3:])
+    return sim, state
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="from a jam on a fold, whether the first plan of a palm move finds a motion is "
+    "decided by rounding in the motion LP of the dependent contacts: raised by 1e-6 or "
+    "1e-3 palm widths the hand jams where it is, by 1e-5, 1e-4, 1e-2 or 0.05 the object "
+    "falls and the palm rises (docs/reliability.md)",
+)
+def test_a_move_from_a_jam_at_a_fold_does_not_depend_on_its_length() -> None:
+    sim, state = _jammed_at_a_fold()
+    assert state.jammed
+    raised = [
+        sim.move_hand(state, palm=state.hand[:3] + np.array([0.0, dy, 0.0])).jammed
+        for dy in (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.05)
+    ]
+    assert len(set(raised)) == 1
