@@ -31,8 +31,9 @@ import numpy as np
 from grasp_env.arguments import integer, number, real_vector
 from grasp_env.core import geometry as geo
 from grasp_env.core import kinematics as kin
-from grasp_env.core.scene import MAX_ANGLE, Scene
+from grasp_env.core.scene import MAX_ANGLE, MAX_COORDINATE, Scene
 from grasp_env.core.scene_loading import load_scene
+from grasp_env.core.scene_validation import coordinate_problem
 from grasp_env.core.state import (
     ContactKey,
     Event,
@@ -56,6 +57,12 @@ from grasp_env.sim.model import Model, pack
 CONTACT_TOL_RANGE = (1e-11, 1e-2)
 #: Largest ``max_iterations`` and ``max_solves``: the compiled core counts in 64-bit ints.
 MAX_WORK = 10**9
+#: Largest coordinate of the object's and the palm's position at a start, in palm widths:
+#: twice the scene schema's bound, so that every start about a scene's own is accepted (the
+#: env's palm workspace reaches 2 palm widths past the object's scene position), while the
+#: rounding of a position (2e4 w x 2.2e-16) stays 200 times below the default contact
+#: tolerance.
+MAX_POSITION = 2 * MAX_COORDINATE
 
 _NO_KEYS = np.zeros((0, 4), dtype=np.int64)
 #: The spacing of doubles at 1.
@@ -98,10 +105,11 @@ class Simulator:
         lp_solver: str = "fast",
     ) -> None:
         self.scene = load_scene(scene)
-        if lp_solver not in ("fast", "highs"):
+        # a str first: an array would compare element-wise
+        if not isinstance(lp_solver, str) or lp_solver not in ("fast", "highs"):
             raise ValueError(f"lp_solver must be 'fast' or 'highs', got {lp_solver!r}")
         contact_tol = number(contact_tol, "contact_tol", *CONTACT_TOL_RANGE, False, True)
-        self.lp_solver = lp_solver
+        self.lp_solver = str(lp_solver)
         self.max_step = number(max_step, "max_step", 0.0, 1.0)
         fall_step = number(fall_step, "fall_step", 0.0, 1.0)
         self.max_iterations = integer(max_iterations, "max_iterations", 1, most=MAX_WORK)
@@ -207,11 +215,17 @@ class Simulator:
         self, object_pose: np.ndarray, hand: np.ndarray, names: tuple = ("object_pose", "hand")
     ) -> None:
         """Refuse (``ValueError`` naming ``names``) a start the simulator does not move from:
-        the object's or the palm's angle beyond 2 pi in magnitude (the scene schema's bound),
-        the fingers outside their joint limits, or the object or the hand entering the
-        support or each other by more than the contact tolerance (the simulator moves bodies
-        that touch; it does not separate overlapping ones)."""
+        the object's or the palm's position beyond ``MAX_POSITION`` palm widths or angle
+        beyond 2 pi in magnitude (the scene schema's bound), the fingers outside their joint
+        limits, or the object or the hand entering the support or each other by more than the
+        contact tolerance (the simulator moves bodies that touch; it does not separate
+        overlapping ones)."""
         q_name, h_name = names
+        w = self.scene.palm.width
+        for name, position in ((q_name, object_pose[:2]), (h_name, hand[:2])):
+            problem = coordinate_problem(position, name, w, MAX_POSITION)
+            if problem:
+                raise ValueError(problem)
         _check_angle(f"{q_name}[2]", object_pose[2])
         _check_angle(f"{h_name}[2]", hand[2])
         low, high = self.scene.joint_limits.T
@@ -224,6 +238,21 @@ class Simulator:
         if problem:
             raise ValueError(
                 f"{q_name} {object_pose.tolist()} with {h_name} {hand.tolist()}: {problem}"
+            )
+
+    def check_state(self, state: State) -> None:
+        """Refuse (``ValueError``) a state built by hand that the simulator does not move
+        from: a start :meth:`check_start` refuses, or contacts other than those the
+        simulator finds at its object pose and hand (the move takes a state's contacts as
+        known: a mislabelled one would stop the hand with a false jam)."""
+        q, h = state.object_pose.copy(), state.hand.copy()  # the compiled core's own arrays
+        self.check_start(q, h, ("state.object_pose", "state.hand"))
+        given = sorted(map(tuple, self._keys_of(state).tolist()))
+        found = sorted(map(tuple, move.at_rest(self.model, q, h)[0].tolist()))
+        if given != found:
+            raise ValueError(
+                f"state.contacts {given} (keys: body, kind, object_feature, hand_feature) are "
+                f"not the contacts at the state's object pose and hand, {found}"
             )
 
     def move_hand(
@@ -247,7 +276,7 @@ class Simulator:
         Raises:
             TypeError: ``state`` is not a :class:`~grasp_env.core.state.State`.
             ValueError: ``state`` is of another scene (a scene loaded again is another one);
-                a state built by hand that :meth:`check_start` refuses; a palm angle beyond
+                a state built by hand that :meth:`check_state` refuses; a palm angle beyond
                 2 pi in magnitude; a palm target farther from the palm than
                 :attr:`max_travel`.
             WorkLimitError: the move needs more than ``max_solves`` pose solves (or
@@ -256,8 +285,8 @@ class Simulator:
                 increments.
         """
         own_state(state, self.scene)
-        if state._by_hand:
-            self.check_start(state.object_pose, state.hand, ("state.object_pose", "state.hand"))
+        if state._by_hand:  # a state this simulator made needs no check
+            self.check_state(state)
         target = state.hand.tolist()
         if palm is not None:
             target[:3] = _finite_floats(palm, 3, "palm")

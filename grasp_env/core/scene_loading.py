@@ -66,9 +66,51 @@ _FLOAT_TAG = "tag:yaml.org,2002:float"
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 
 
+#: Deepest nesting of values a scene file may have (the schema needs 5: a number in a point in
+#: ``object.vertices``); PyYAML composes nested values by recursion, which a deeper file
+#: would take past Python's recursion limit.
+MAX_DEPTH = 32
+
+
 class _SceneLoader(yaml.SafeLoader):
-    """PyYAML's safe loader with YAML 1.2 numbers (``_INT``, ``_FLOAT``) and no duplicate keys
-    (YAML forbids them; PyYAML would keep the last silently, e.g. a second ``palm:`` block)."""
+    """PyYAML's safe loader with YAML 1.2 numbers (``_INT``, ``_FLOAT``), no duplicate keys
+    (YAML forbids them; PyYAML would keep the last silently, e.g. a second ``palm:`` block),
+    no aliases (``*name``: a few nested ones stand for billions of values, which a field kept
+    as text spells out, and the schema has no use for them), values nested at most
+    ``MAX_DEPTH`` deep, and every failure to construct a value (``!!bool maybe``,
+    ``!!float abc``) a YAML error at the value's line."""
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise SceneError(
+                f"alias *{event.anchor} on line {event.start_mark.line + 1}: scene files may "
+                "not use aliases; write the value out"
+            )
+        if self._depth >= MAX_DEPTH:
+            line = self.peek_event().start_mark.line + 1
+            raise SceneError(f"values nested more than {MAX_DEPTH} levels deep on line {line}")
+        self._depth += 1
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep=deep)
+        except (yaml.YAMLError, SceneError):
+            raise
+        except (ArithmeticError, AttributeError, KeyError, TypeError, ValueError):
+            tag = node.tag.replace("tag:yaml.org,2002:", "!!")
+            value = repr(node.value) if isinstance(node, yaml.ScalarNode) else f"this {node.id}"
+            raise yaml.constructor.ConstructorError(
+                None, None, f"{value} is not a valid {tag}", node.start_mark
+            ) from None
 
     def construct_mapping(self, node: yaml.Node, deep: bool = False) -> dict:
         if isinstance(node, yaml.MappingNode):
@@ -141,9 +183,10 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
         The validated scene; ``source`` holds the file it was read from (None for a dict).
 
     Raises:
-        SceneError: an unknown bundled name, a file that is missing or unreadable, or an
-            invalid field (the message names the field and the value). ``SceneError`` is a
-            ``ValueError``.
+        SceneError: an unknown bundled name, a file that is missing or unreadable, not
+            valid YAML (the message names the file and the line) or in YAML the loader
+            refuses (aliases, deep nesting: ``_SceneLoader``), or an invalid field (the
+            message names the field and the value). ``SceneError`` is a ``ValueError``.
     """
     if isinstance(spec, Scene):
         return spec
@@ -163,16 +206,16 @@ def load_scene(spec: str | os.PathLike | dict | Scene) -> Scene:
         path = SCENES_DIR.joinpath(f"{spec}.yaml")
     try:
         text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise SceneError(f"scene file {str(path)!r} cannot be read: {reason}") from None
     except UnicodeDecodeError as exc:
         raise SceneError(f"scene file {str(path)!r} is not UTF-8 text: {exc.reason}") from None
+    except (OSError, ValueError) as exc:  # ValueError: a path with a NUL byte
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise SceneError(f"scene file {str(path)!r} cannot be read: {reason}") from None
     try:
         data = yaml.load(text, Loader=_SceneLoader)
     except yaml.YAMLError as exc:
         raise SceneError(f"scene file {str(path)!r} is not valid YAML: {exc}") from None
-    except SceneError as exc:  # a duplicate key
+    except SceneError as exc:  # a duplicate key, an alias, too deep a nesting
         raise SceneError(f"scene file {str(path)!r}: {exc}") from None
     return scene_from_dict(data, source=str(path))
 

@@ -71,16 +71,27 @@ def _within(
     raise SceneError(f"{name} must be within [{lo:g}, {hi:g}]{rel}, got {x!r}")
 
 
+def coordinate_problem(
+    v: np.ndarray, name: str, width: float, bound: float = MAX_COORDINATE
+) -> str | None:
+    """Why ``v``, (n, 2) or (2,), has a coordinate beyond ``bound`` palm widths (None if it
+    has none), naming the entry of ``name`` and showing its value."""
+    bad = np.argwhere(np.abs(np.atleast_2d(v)) > bound * width)
+    if not len(bad):
+        return None
+    i, j = (int(x) for x in bad[0])
+    where = f"{name}[{i}][{j}]" if np.ndim(v) == 2 else f"{name}[{j}]"
+    return (
+        f"{where} must be within {bound:g} x palm.width = {bound * width:g} in magnitude, "
+        f"got {float(np.atleast_2d(v)[i, j])!r}"
+    )
+
+
 def _coordinates(v: np.ndarray, name: str, width: float) -> None:
     """Refuse a coordinate beyond ``MAX_COORDINATE`` palm widths; ``v`` is (n, 2) or (2,)."""
-    bad = np.argwhere(np.abs(np.atleast_2d(v)) > MAX_COORDINATE * width)
-    if len(bad):
-        i, j = (int(x) for x in bad[0])
-        where = f"{name}[{i}][{j}]" if np.ndim(v) == 2 else f"{name}[{j}]"
-        raise SceneError(
-            f"{where} must be within {MAX_COORDINATE:g} x palm.width = "
-            f"{MAX_COORDINATE * width:g} in magnitude, got {float(np.atleast_2d(v)[i, j])!r}"
-        )
+    problem = coordinate_problem(v, name, width)
+    if problem:
+        raise SceneError(problem)
 
 
 def _vector(
@@ -162,6 +173,10 @@ def _finger(d: Any, i: int, width: float) -> FingerSpec:
     )
 
 
+#: Adjacent vertices this close, relative to the polygon's extent, are one point given twice.
+SAME_POINT_TOL = 1e-9
+
+
 def convex_polygon(raw: Any, name: str, width: float | None = None) -> np.ndarray:
     """``raw`` as a new ``(n, 2)`` float array: at least 3 points of two real, finite numbers,
     counter-clockwise, strictly convex, winding once (no star polygon) and no point repeated;
@@ -180,9 +195,14 @@ def convex_polygon(raw: Any, name: str, width: float | None = None) -> np.ndarra
     scale = float(np.ptp(v, axis=0).max())
     _representable(v, scale, name)
     edge = geo.norms(geo.edge_vectors(v))
-    for i in np.flatnonzero(edge <= 1e-9 * max(scale, 1e-300)):
+    least = SAME_POINT_TOL * max(scale, 1e-300)
+    for i in np.flatnonzero(edge <= least):
         j = (i + 1) % len(v)
-        raise SceneError(f"{name}[{i}] and [{j}] repeat the point {v[i].tolist()}")
+        raise SceneError(
+            f"{name}[{i}] and [{j}] ({v[i].tolist()}, {v[j].tolist()}) are "
+            f"{float(edge[i])!r} apart, within the tolerance of {SAME_POINT_TOL:g} x the "
+            f"polygon's extent = {least!r}: they count as one point"
+        )
     if geo.polygon_area(v) < 0:
         raise SceneError(f"{name} are clockwise; give them counter-clockwise: {v.tolist()}")
     if not geo.is_convex_ccw(v) or not geo.turns_once(v):

@@ -21,7 +21,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
-from grasp_env.arguments import real_vector, short
+from grasp_env.arguments import integer, number, real_vector, short
 from grasp_env.core.geometry import BODY_NAMES
 from grasp_env.core.scene import Scene
 
@@ -87,6 +87,14 @@ class Contact:
             raise ValueError(f"contact normal must be a unit vector, got {normal.tolist()}")
         object.__setattr__(self, "point", read_only(point))
         object.__setattr__(self, "normal", read_only(normal))
+        # plain Python numbers, as the simulator's own contacts hold
+        for name in ("object_feature", "hand_feature"):
+            value = integer(getattr(self, name), f"contact {name}", 0, TypeError)
+            object.__setattr__(self, name, value)
+        force = number(self.force, "contact force", 0.0, math.inf, False, True)
+        object.__setattr__(self, "force", force)
+        gap = number(self.gap, "contact gap", -math.inf, math.inf, True, True)
+        object.__setattr__(self, "gap", gap)
 
     def __setstate__(self, fields: dict) -> None:
         """Unpickled, as made: its arrays read-only."""
@@ -171,11 +179,13 @@ class State:
             raise TypeError(f"state scene must be a grasp_env.Scene, got {short(self.scene)}")
         for name, size in (("object_pose", 3), ("hand", 5)):  # copies, as the state's own
             object.__setattr__(self, name, read_only(real_vector(getattr(self, name), name, size)))
-        contacts = tuple(self.contacts)
-        for c in contacts:
-            if not isinstance(c, Contact):
-                raise TypeError(f"state contacts must be grasp_env.Contact, got {short(c)}")
-        object.__setattr__(self, "contacts", contacts)
+        object.__setattr__(self, "contacts", _items(self.contacts, "contacts", Contact))
+        object.__setattr__(self, "events", _items(self.events, "events", Event))
+        for name in ("jammed", "hand_blocked"):
+            value = getattr(self, name)
+            if not isinstance(value, bool | np.bool_):
+                raise TypeError(f"state {name} must be a bool, got {short(value)}")
+            object.__setattr__(self, name, bool(value))
         object.__setattr__(self, "_by_hand", True)
 
     def __setstate__(self, fields: dict) -> None:
@@ -210,6 +220,20 @@ class State:
             keep_contact_arrays(self, pts, nrm, bodies)
         pts, nrm, bodies = self._arrays
         return pts.copy(), nrm.copy(), bodies.copy()
+
+
+def _items(value: object, name: str, kind: type) -> tuple:
+    """``value`` as a tuple of ``kind`` objects, else ``TypeError`` naming ``name``."""
+    try:
+        items = tuple(value)  # type: ignore[call-overload]
+    except TypeError:
+        raise TypeError(
+            f"state {name} must be a sequence of grasp_env.{kind.__name__}, got {short(value)}"
+        ) from None
+    for item in items:
+        if not isinstance(item, kind):
+            raise TypeError(f"state {name} must be grasp_env.{kind.__name__}, got {short(item)}")
+    return items
 
 
 def require_state(state: object) -> None:

@@ -150,7 +150,7 @@ class GraspEnvBase(gym.Env):
             ValueError: a bad action (as :meth:`step`).
             TypeError: ``state`` is not a :class:`grasp_env.State`.
             ValueError: ``state`` is of another scene than the current episode's, or a state
-                built by hand that :meth:`grasp_env.Simulator.check_start` refuses.
+                built by hand that :meth:`grasp_env.Simulator.check_state` refuses.
             RuntimeError: called before the first :meth:`reset`.
             SimulationError, SolverError: where :meth:`step` would end the episode with
                 ``info["sim_error"]``.
@@ -161,7 +161,7 @@ class GraspEnvBase(gym.Env):
         sim = self._episode.sim
         own_state(state, sim.scene)
         if state._by_hand:  # a simulator's state needs no check
-            sim.check_start(state.object_pose, state.hand, ("state.object_pose", "state.hand"))
+            sim.check_state(state)
         if self.friction > 0.0 and self._episode.friction_jams(
             state_arrays(state), np.array(a), self._settings, self.friction
         ):

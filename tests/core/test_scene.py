@@ -888,6 +888,20 @@ def test_a_non_convex_polygon_is_refused_at_the_vertex_at_fault() -> None:
         load_scene(d)
 
 
+def test_points_closer_than_the_tolerance_are_not_said_to_repeat() -> None:
+    """Adjacent points 1e-12 apart in a unit polygon are refused as closer than the
+    tolerance (1e-9 of its extent), showing both points, not as one point repeated."""
+    from grasp_env.mechanics.width import object_width
+
+    v = [[0.0, 0.0], [1.0, 0.0], [1.0, 1e-12], [0.0, 1e-12]]
+    with pytest.raises(SceneError) as info:
+        object_width(v)
+    msg = str(info.value)
+    assert msg.startswith("scene_or_vertices[1] and [2] ([1.0, 0.0], [1.0, 1e-12]) are 1e-12 apart")
+    assert "tolerance of 1e-09 x the polygon's extent = 1e-09" in msg
+    assert "repeat" not in msg
+
+
 # A string without a path separator or a .yaml/.yml suffix is a bundled name, whatever the
 # working directory holds; a separator, a suffix or an os.PathLike makes it a file.
 
@@ -1100,6 +1114,75 @@ def test_duplicate_yaml_key_is_refused(tmp_path: Path, old: str, new: str, patte
     path.write_text(text.replace(old, new))
     with pytest.raises(SceneError, match=rf"scene file .*duplicate\.yaml': {pattern}"):
         load_scene(path)
+
+
+LAUGHS = "\n".join(
+    ["description:", "  - &a0 [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]
+    + [f"  - &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 9)]
+)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "pattern"),
+    [
+        pytest.param(
+            "gravity: &g 9.81",
+            "gravity: !!bool maybe",
+            r" is not valid YAML: 'maybe' is not a valid !!bool\n.*line 23",
+            id="bool-tag",
+        ),
+        pytest.param(
+            "gravity: &g 9.81",
+            "gravity: !!timestamp notadate",
+            r" is not valid YAML: 'notadate' is not a valid !!timestamp\n.*line 23",
+            id="timestamp-tag",
+        ),
+        pytest.param(
+            "gravity: &g 9.81",
+            "gravity: !!float abc",
+            r" is not valid YAML: 'abc' is not a valid !!float\n.*line 23",
+            id="float-tag",
+        ),
+        pytest.param(
+            "gravity: &g 9.81",
+            "gravity: " + "[" * 5000 + "]" * 5000,
+            r": values nested more than 32 levels deep on line 23$",
+            id="nested-5000-deep",
+        ),
+        pytest.param(
+            "  density: 1.0\nfingers:",
+            "  density: *g\nfingers:",
+            r": alias \*g on line 28: scene files may not use aliases",
+            id="alias",
+        ),
+        pytest.param(
+            'description: "Section 4',
+            LAUGHS + '\nx: "Section 4',  # 9**9 lols if expanded
+            r": alias \*a0 on line 24: scene files may not use aliases",
+            id="billion-laughs",
+        ),
+    ],
+)
+def test_refused_yaml_is_a_scene_error_naming_file_and_line(
+    tmp_path: Path, old: str, new: str, pattern: str
+) -> None:
+    """Tags on values they cannot hold, nesting past the recursion limit and aliases (whose
+    expansion a few levels deep is exponential) are refused naming the file and the line;
+    the anchor ``&g`` alone is kept."""
+    text = (SCENES_DIR / "fig13.yaml").read_text().replace("gravity: 9.81", "gravity: &g 9.81")
+    assert text.count(old) == 1
+    path = tmp_path / "tagged.yaml"
+    path.write_text(text.replace(old, new))
+    with pytest.raises(SceneError, match=r"(?s)^scene file '.*tagged\.yaml'" + pattern):
+        load_scene(path)
+    path.write_text(text)
+    assert load_scene(path).gravity == 9.81
+
+
+@pytest.mark.parametrize("spec", ["a\0b.yaml", Path("a\0b")], ids=["str", "Path"])
+def test_a_path_with_a_nul_byte_is_refused(spec: str | Path) -> None:
+    with pytest.raises(SceneError, match=r"scene file 'a\\x00b.*' cannot be read: .*null byte"):
+        load_scene(spec)
 
 
 def test_scene_to_dict_round_trips_one_sided_torque_limits() -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import copy
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ import numpy as np
 import pytest
 import yaml
 
+from grasp_env.core.state import Contact
 from grasp_env.envs import ENV_ID
 from grasp_env.envs.frictionless_grasp import FrictionlessGraspEnv
 
@@ -390,6 +392,19 @@ def test_a_state_of_another_scene_is_refused() -> None:
     other.reset(seed=0)
     with pytest.raises(ValueError, match="state is of scene 'square', not of 'fig13'"):
         env.simulate_action(other.state, np.zeros(env.action_space.shape))
+    assert_same_after(env, twin)
+
+
+def test_a_state_with_a_mislabelled_contact_is_refused() -> None:
+    """A hand-built state whose support contact is relabelled as a finger's: the env's
+    compiled move would take it as a known contact and stop the hand with a false jam."""
+    env, twin = twin_envs()
+    state = env.state
+    i, c = next((i, c) for i, c in enumerate(state.contacts) if c.body == "support")
+    bad = Contact("finger1", c.kind, c.point, c.normal, c.force, c.object_feature, c.hand_feature)
+    contacts = (*state.contacts[:i], bad, *state.contacts[i + 1 :])
+    with pytest.raises(ValueError, match=r"^state.contacts .* are not the contacts at the state"):
+        env.simulate_action(replace(state, contacts=contacts), ACTION)
     assert_same_after(env, twin)
 
 

@@ -1152,6 +1152,12 @@ def test_contact_tol_out_of_range_refused(tol) -> None:
         ({"fall_step": 0.0}, ValueError, r"fall_step must be finite and in \(0, 1\], got 0.0"),
         ({"max_iterations": 10**30}, ValueError, r"max_iterations must be an integer in \[1, "),
         ({"max_solves": 2.5}, ValueError, "max_solves must be an integer >= 1, got 2.5"),
+        (
+            {"lp_solver": np.array(["fast"])},
+            ValueError,
+            r"lp_solver must be 'fast' or 'highs', got array\(\['fast'\]",
+        ),
+        ({"lp_solver": b"fast"}, ValueError, "lp_solver must be 'fast' or 'highs', got b'fast'"),
     ],
 )
 def test_bad_simulator_settings_are_named(kwargs, error, needle) -> None:
@@ -1697,6 +1703,30 @@ def test_a_state_built_by_hand_moves_as_the_simulators_own() -> None:
     assert [c.key for c in a.contacts] == [c.key for c in b.contacts]
 
 
+def test_a_state_built_by_hand_with_mislabelled_contacts_is_not_moved() -> None:
+    """The move takes a state's contacts as known: a support contact labelled as finger 1's
+    stopped the hand at its start with a false jam. The keys must be those the simulator
+    finds at the state; their order is free."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    c = start.contacts[0]
+    relabelled = dataclasses.replace(c, body="finger1")
+    no_vertex = dataclasses.replace(c, object_feature=99)
+    for contacts in (
+        (relabelled, *start.contacts[1:]),
+        (no_vertex, *start.contacts[1:]),
+        start.contacts[1:],
+        (),
+    ):
+        built = State(sim.scene, start.object_pose, start.hand, contacts)
+        with pytest.raises(ValueError, match=r"^state\.contacts \[.*\] .* are not the contacts"):
+            sim.move_hand(built, fingers=(-1.0, -2.0))
+    built = State(sim.scene, start.object_pose, start.hand, start.contacts[::-1])
+    moved = sim.move_hand(built, fingers=(-1.0, -2.0))
+    assert not moved.jammed
+    np.testing.assert_array_equal(moved.hand, sim.move_hand(start, fingers=(-1.0, -2.0)).hand)
+
+
 @pytest.mark.parametrize(
     ("change", "needle"),
     [
@@ -1743,6 +1773,48 @@ def test_settle_refuses_angles_beyond_two_pi() -> None:
         sim.settle(start.object_pose + np.array([0.0, 0.0, 7.0]), start.hand)
     with pytest.raises(ValueError, match=r"^hand\[2\] must be an angle .* -6\.5"):
         sim.settle(start.object_pose, start.hand + np.array([0.0, 0.0, -6.5, 0.0, 0.0]))
+
+
+@pytest.mark.parametrize(
+    ("pose", "hand", "needle"),
+    [
+        ((1e16, 0.2, 0.0), None, r"^object_pose\[0\] must be within 20000 x palm\.width .*1e\+16"),
+        ((0.0, 1e5, 0.0), None, r"^object_pose\[1\] must be within 20000 .*got 100000\.0"),
+        (None, (-3e4, 0.71), r"^hand\[0\] must be within 20000 .*got -30000\.0"),
+        (None, (0.0, 1e5), r"^hand\[1\] must be within 20000 .*got 100000\.0"),
+    ],
+    ids=["object-x", "object-y", "palm-x", "palm-y"],
+)
+def test_settle_refuses_positions_beyond_twice_the_scene_bound(pose, hand, needle) -> None:
+    """Where rounding would swallow the contact tolerance (an object at 1e16 collapsed with
+    'invalid value' warnings) or a fall could not end in bounded work: refused, through
+    ``settle`` and a state built by hand."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    q = start.object_pose if pose is None else np.array(pose)
+    h = start.hand.copy()
+    if hand is not None:
+        h[:2] = hand
+    with pytest.raises(ValueError, match=needle):
+        sim.settle(q, h)
+    with pytest.raises(ValueError, match=needle.replace("^", "^state\\.")):
+        sim.move_hand(State(sim.scene, q, h), fingers=(-1.0, -2.0))
+
+
+def test_settle_takes_starts_in_the_env_workspace_of_a_far_scene() -> None:
+    """The bound is twice the scene schema's: a scene at its coordinate bound, with the palm
+    where the env's workspace reaches (2 palm widths past the object), still settles."""
+    d = yaml.safe_load((SCENES_DIR / "fig13.yaml").read_text())
+    shift = 1e4 - 0.34  # the object's rightmost vertex, x = 0.33, just inside 1e4
+    d["palm"]["pose"][0] += shift
+    d["object"]["vertices"] = [[x + shift, y] for x, y in d["object"]["vertices"]]
+    sim = Simulator(grasp_env.load_scene(d))
+    start = sim.reset()
+    hand = start.hand.copy()
+    hand[0] = sim.scene.object.start_pose[0] + 2.0
+    assert hand[0] > 1e4
+    state = sim.settle(start.object_pose, hand)
+    assert state.hand[0] == hand[0] and state.on_support
 
 
 def test_a_palm_angle_beyond_two_pi_is_refused() -> None:
