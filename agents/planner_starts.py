@@ -25,6 +25,11 @@ placement fails, the policy drives the hand to another placement or explores wit
 motion, so these states teach what the plans from the scene's start never show: leaving a
 placement that does not lift.
 
+With ``--select FILE --palm-travel D`` nothing is planned: the lifts of a starts file
+whose palm travels more than ``D`` palm widths from where it starts are written (of the
+scripted episodes, the shapes the planner lifts only by leaving its first placement), for a
+file that :class:`agents.wrappers.PlannerStarts` weighs on its own.
+
 The file is a pickle: a list of ``{"seed", "scene", "hands" (k, 5), "poses" (k, 3)}``, one
 per lifted shape.
 """
@@ -146,6 +151,30 @@ def scripted_episode(seed: int) -> dict | None:
     return kept_states(scene, seed, hands, poses) if info["is_success"] else None
 
 
+def palm_travel(lift: dict) -> float:
+    """How far, in palm widths, the palm of a starts-file lift gets from where it starts:
+    the largest distance of its position from the first state's."""
+    palm = lift["hands"][:, :2]
+    return float(np.hypot(*(palm - palm[0]).T).max()) / lift["scene"].palm.width
+
+
+def select(path, travel: float) -> list[dict]:
+    """The lifts of the starts file ``path`` whose palm travels more than ``travel`` palm
+    widths (:func:`palm_travel`); ValueError naming a bad file or distance."""
+    if not (isinstance(travel, int | float) and math.isfinite(travel) and travel >= 0):
+        raise ValueError(f"--palm-travel must be a finite distance >= 0, got {travel!r}")
+    try:
+        with open(path, "rb") as f:
+            lifts = pickle.load(f)
+    except (OSError, pickle.UnpicklingError, EOFError) as exc:
+        raise ValueError(f"--select {str(path)!r} is not a starts file: {exc}") from None
+    if not isinstance(lifts, list) or not all(
+        isinstance(t, dict) and {"scene", "hands", "poses"} <= t.keys() for t in lifts
+    ):
+        raise ValueError(f"--select {str(path)!r} is not a starts file (a list of lifts)")
+    return [t for t in lifts if palm_travel(t) > travel]
+
+
 def _planned(seed: int, approach: bool) -> dict | None:
     env = gym.make(ENV_ID).unwrapped
     env.reset(seed=seed)
@@ -191,22 +220,38 @@ def main(argv: list[str] | None = None) -> int:
         help="the scripted planner's episodes in the lifting task from its own start instead",
     )
     parser.add_argument("--workers", type=workers, default=1, help="processes")
+    parser.add_argument(
+        "--select",
+        metavar="FILE",
+        help="plan nothing: write the lifts of this starts file that --palm-travel keeps",
+    )
+    parser.add_argument(
+        "--palm-travel",
+        type=float,
+        metavar="D",
+        help="with --select: keep the lifts whose palm travels more than D palm widths",
+    )
     args = parser.parse_args(argv)
     if args.out.exists():
         parser.error(f"--out {str(args.out)!r} exists; remove it or name another file")
+    if (args.select is None) != (args.palm_travel is None):
+        parser.error("--select and --palm-travel go together")
+    if args.select is not None and (args.approach or args.scripted):
+        parser.error("--select plans nothing: it excludes --approach and --scripted")
     start = time.perf_counter()
     try:
-        found = collect(args.shapes, args.seed, args.approach, args.scripted, args.workers)
+        if args.select is not None:
+            found = select(args.select, args.palm_travel)
+        else:
+            found = collect(args.shapes, args.seed, args.approach, args.scripted, args.workers)
     except ValueError as exc:
         parser.error(str(exc))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "wb") as f:
         pickle.dump(found, f)
     states = sum(len(t["poses"]) for t in found)
-    print(
-        f"{len(found)} of {args.shapes} shapes grasped, {states} states, "
-        f"{time.perf_counter() - start:.0f} s: {args.out}"
-    )
+    what = f"of {args.select!r} kept" if args.select else f"of {args.shapes} shapes grasped"
+    print(f"{len(found)} {what}, {states} states, {time.perf_counter() - start:.0f} s: {args.out}")
     return 0
 
 

@@ -65,7 +65,11 @@ class PlannerStarts(gym.Wrapper):
     At a reset without options, with probability ``probability``, the episode starts from a
     state of one of the planner's lifts in ``starts`` (a file ``python -m
     agents.planner_starts`` writes, or a list of them, their lifts pooled): its shape, hand
-    and object pose, through the env's reset options. Which state: one drawn uniformly from
+    and object pose, through the env's reset options. Which lift: one drawn uniformly from
+    the pool, or with ``weights`` (one per file) from file ``i`` with probability
+    ``weights[i] / sum(weights)``, uniformly among its lifts, so that a file of few lifts
+    of one kind (those that leave a placement, say) starts a set share of the episodes.
+    Which state: one drawn uniformly from
     the last ``ceil(reach * n)`` of the lift's ``n`` states, ``reach`` growing linearly with
     the env steps this wrapper has seen, from ``first_reach`` to 1 at ``curriculum_steps``:
     first the states next to form closure, then ever earlier ones, back to the placement the
@@ -77,6 +81,7 @@ class PlannerStarts(gym.Wrapper):
     def __init__(
         self, env: gym.Env, starts: str | list[str], probability: float = 0.5,
         curriculum_steps: int = 1_000_000, first_reach: float = 0.1,
+        weights: list[float] | None = None,
     ) -> None:  # fmt: skip
         super().__init__(env)
         if not 0.0 <= probability <= 1.0:
@@ -88,7 +93,7 @@ class PlannerStarts(gym.Wrapper):
         paths = [starts] if isinstance(starts, str | Path) else starts
         if not isinstance(paths, list | tuple) or not all(isinstance(p, str | Path) for p in paths):
             raise ValueError(f"starts must be a file name or a list of them, got {starts!r}")
-        self.lifts = []
+        self.lifts, self._files = [], []  # the pool, and each file's range in it
         for path in paths:
             if not Path(path).is_file():
                 raise ValueError(
@@ -99,13 +104,37 @@ class PlannerStarts(gym.Wrapper):
                 lifts = pickle.load(f)
             if not lifts:
                 raise ValueError(f"starts {str(path)!r} holds no lift")
+            self._files.append((len(self.lifts), len(lifts)))
             self.lifts += lifts
         if not self.lifts:
             raise ValueError(f"starts {starts!r} names no file")
+        self.weights = None if weights is None else self._file_weights(weights, len(paths))
         self.probability, self.first_reach = float(probability), float(first_reach)
         self.curriculum_steps = int(curriculum_steps)
         self.steps = self.unsettled = 0
         self._rng = np.random.default_rng()
+
+    @staticmethod
+    def _file_weights(weights, files: int) -> np.ndarray:
+        """``weights`` as probabilities, one per file; ValueError naming them where they are
+        not as many non-negative finite numbers as files, with a positive sum."""
+        try:
+            w = np.array(weights, dtype=float)
+        except (TypeError, ValueError):
+            w = np.array([np.nan])
+        if (
+            w.shape != (files,)
+            or isinstance(weights, str)
+            or any(isinstance(x, bool) for x in weights)
+            or not np.isfinite(w).all()
+            or (w < 0).any()
+            or w.sum() <= 0
+        ):
+            raise ValueError(
+                f"weights must be {files} non-negative numbers with a positive sum, one per "
+                f"starts file, got {weights!r}"
+            )
+        return w / w.sum()
 
     @property
     def reach(self) -> float:
@@ -117,7 +146,11 @@ class PlannerStarts(gym.Wrapper):
         """The options of the next reset: a state of a lift, or None (the env's start)."""
         if self._rng.random() >= self.probability:
             return None
-        lift = self.lifts[self._rng.integers(len(self.lifts))]
+        if self.weights is None:
+            lift = self.lifts[self._rng.integers(len(self.lifts))]
+        else:
+            first, count = self._files[self._rng.choice(len(self._files), p=self.weights)]
+            lift = self.lifts[first + self._rng.integers(count)]
         n = len(lift["poses"])
         i = self._rng.integers(n - math.ceil(self.reach * n), n)
         hand = lift["hands"][i]

@@ -4,6 +4,7 @@ draws them (agents.wrappers.PlannerStarts)."""
 from __future__ import annotations
 
 import pickle
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -14,7 +15,9 @@ from agents.planner_starts import (
     ENV_ID,
     collect,
     main,
+    palm_travel,
     scripted_episode,
+    select,
     trajectory,
 )
 from agents.wrappers import PlannerStarts
@@ -196,3 +199,71 @@ def test_a_list_of_starts_files_pools_their_lifts(starts, tmp_path):
     missing = str(tmp_path / "other.pkl")
     with pytest.raises(ValueError, match=r"starts .*other\.pkl.* agents\.planner_starts"):
         PlannerStarts(gym.make(ENV_ID), [starts, missing])
+
+
+def _file_of(env, options) -> int:
+    """Which of the wrapper's files the drawn start's lift came from."""
+    index = next(i for i, t in enumerate(env.lifts) if t["scene"] is options["scene"])
+    return next(k for k, (first, count) in enumerate(env._files) if first <= index < first + count)
+
+
+def test_weights_set_each_files_share_of_the_starts(starts, tmp_path):
+    one = tmp_path / "one.pkl"
+    with open(starts, "rb") as f:
+        one.write_bytes(pickle.dumps(pickle.load(f)[:1]))  # one lift against the fixture's
+    env = PlannerStarts(gym.make(ENV_ID), [starts, str(one)], probability=1.0, weights=[1, 3])
+    assert len(env.lifts) > 2
+    env.reset(seed=11)
+    draws = [_file_of(env, env.start_options()) for _ in range(2000)]
+    # pooled, the single lift would start 1 / len(lifts) of them; weighed, 3 / 4 (binomial
+    # standard deviation about 0.01)
+    assert abs(np.mean(draws) - 0.75) < 0.04
+    only = PlannerStarts(gym.make(ENV_ID), [starts, str(one)], probability=1.0, weights=[0, 2])
+    only.reset(seed=11)
+    assert all(_file_of(only, only.start_options()) == 1 for _ in range(50))
+
+
+@pytest.mark.parametrize(
+    "weights", [[1.0], [1, 2, 3], [-1, 2], [0, 0], ["a", 1], [True, 1], [float("nan"), 1], "ab", 3]
+)
+def test_bad_weights_are_named(starts, weights):
+    with pytest.raises(ValueError, match=r"weights must be 2 non-negative .*got"):
+        PlannerStarts(gym.make(ENV_ID), [starts, starts], weights=weights)
+
+
+def test_select_keeps_the_lifts_whose_palm_leaves_its_start(starts, tmp_path):
+    with open(starts, "rb") as f:
+        lifts = pickle.load(f)
+    moved = []
+    for k, lift in enumerate(lifts):  # palm moved by k * 0.01 palm widths at one state
+        lift = dict(lift, hands=lift["hands"].copy())
+        lift["hands"][:] = lift["hands"][0]
+        w = lift["scene"].palm.width
+        lift["hands"][-1, :2] += np.array([0.6, -0.8]) * (0.01 * k * w)
+        moved.append(lift)
+    for k, lift in enumerate(moved):
+        assert palm_travel(lift) == pytest.approx(0.01 * k, abs=1e-12)
+    path = tmp_path / "moved.pkl"
+    path.write_bytes(pickle.dumps(moved))
+    assert [t["seed"] for t in select(path, 0.005)] == [t["seed"] for t in moved[1:]]
+    out = tmp_path / "kept.pkl"
+    assert main(["--out", str(out), "--select", str(path), "--palm-travel", "0.015"]) == 0
+    with open(out, "rb") as f:
+        assert [t["seed"] for t in pickle.load(f)] == [t["seed"] for t in moved[2:]]
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [(["--palm-travel", "0.01"], "go together"), (["--select", "x.pkl"], "go together"),
+     (["--select", "S", "--palm-travel", "0.01", "--scripted"], "excludes --approach"),
+     (["--select", "S", "--palm-travel", "-1"], r"--palm-travel .* -1"),
+     (["--select", "S", "--palm-travel", "nan"], r"--palm-travel .* nan"),
+     (["--select", "missing.pkl", "--palm-travel", "0.01"], r"--select .*missing\.pkl")],
+)  # fmt: skip
+def test_bad_selections_are_named(starts, tmp_path, capsys, args, match):
+    args = [starts if a == "S" else str(tmp_path / a) if a.endswith(".pkl") else a for a in args]
+    with pytest.raises(SystemExit) as exc:
+        main(["--out", str(tmp_path / "out.pkl"), *args])
+    assert exc.value.code == 2
+    assert re.search(match, capsys.readouterr().err)
+    assert not (tmp_path / "out.pkl").exists()
