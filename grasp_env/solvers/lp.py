@@ -7,6 +7,7 @@ inequality and equality rows, so a faster specialised solver can replace it behi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -41,14 +42,23 @@ def solve(
     A_eq: np.ndarray | None = None,
     b_eq: np.ndarray | None = None,
     bounds: object = (None, None),
+    tolerance: float | None = None,
 ) -> LPResult:
-    """Solve a small LP with HiGHS; raise :class:`SolverError` on any status but the three above."""
+    """Solve a small LP with HiGHS; raise :class:`SolverError` on any status but the three
+    above. ``tolerance`` sets HiGHS' primal and dual feasibility tolerances (absolute; 1e-7 by
+    default)."""
     from scipy.optimize import linprog  # on first use: scipy.optimize is slow to import
 
     if A_ub is not None and len(A_ub) == 0:
         A_ub = b_ub = None
     if A_eq is not None and len(A_eq) == 0:
         A_eq = b_eq = None
+
+    tolerances = (
+        {}
+        if tolerance is None
+        else {"primal_feasibility_tolerance": tolerance, "dual_feasibility_tolerance": tolerance}
+    )
 
     def highs(cost: np.ndarray, **options: Any):
         """HiGHS on these constraints with objective ``cost``."""
@@ -60,7 +70,7 @@ def solve(
             b_eq=b_eq,
             bounds=bounds,
             method="highs",
-            **options,
+            options={**tolerances, **options},
         )
 
     res = highs(c)
@@ -68,7 +78,7 @@ def solve(
         # HiGHS' presolve may only say "infeasible or unbounded", or (rarely, on tiny
         # degenerate problems) call a feasible one infeasible: decide without presolve, and
         # failing that by the feasibility problem (zero objective).
-        res = highs(c, options={"presolve": False})
+        res = highs(c, presolve=False)
         if res.status == 4:
             res.status = 3 if highs(np.zeros_like(c)).status == 0 else 2
     status = _STATUS.get(res.status)
@@ -85,5 +95,16 @@ def solve(
 
 def velocity_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> LPResult:
     """The velocity formulation of the motion LP (eqs. 19-21), ``min W v_y  s.t.  V v >= xi``
-    with ``v`` free; its duals (``-duals_ub``) are the contact forces of the force LP."""
-    return solve(np.array([0.0, weight, 0.0]), A_ub=-V, b_ub=-xi, bounds=(None, None))
+    with ``v`` free; its duals (``-duals_ub``) are the contact forces of the force LP.
+
+    HiGHS' feasibility tolerance is absolute (1e-7): for ``xi`` of 1e-5 it would leave rows
+    violated by a hundredth of their size. The LP is solved with ``xi`` scaled to about one
+    (by a power of two, exactly): ``v`` and the optimum scale with ``xi``, the forces do not.
+    """
+    xi = np.asarray(xi, dtype=float)
+    largest = float(np.max(np.abs(xi), initial=0.0))
+    scale = math.ldexp(1.0, math.frexp(largest)[1]) if 0.0 < largest < math.inf else 1.0
+    res = solve(np.array([0.0, weight, 0.0]), A_ub=-V, b_ub=-xi / scale, bounds=(None, None))
+    if res.status != "optimal":
+        return res
+    return LPResult(res.status, res.x * scale, res.value * scale, res.duals_ub, res.duals_eq)

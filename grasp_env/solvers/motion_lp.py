@@ -35,10 +35,13 @@ class MotionLP:
 def force_lp(V: np.ndarray, xi_: np.ndarray, weight: float) -> lp.LPResult:
     """Force formulation (eqs. 22-24): ``max xi^T lam  s.t.  V^T lam = m gamma, lam >= 0``.
 
-    Returned as the minimisation of ``-xi^T lam``: its ``value`` is minus the optimum.
+    Returned as the minimisation of ``-xi^T lam``: its ``value`` is minus the optimum. A
+    reference for the tests, solved at tight tolerances (1e-10): at HiGHS' default dual
+    tolerance a cost of 1e-5 beside one of 1 (``xi`` of a slow contact beside a fast one) may
+    stop at a vertex short of the optimum by a percent of that small term.
     """
     b = np.array([0.0, weight, 0.0])
-    return lp.solve(-xi_, A_eq=V.T, b_eq=b, bounds=(0, None))
+    return lp.solve(-xi_, A_eq=V.T, b_eq=b, bounds=(0, None), tolerance=1e-10)
 
 
 def motion_lp(V: np.ndarray, xi_: np.ndarray, weight: float, solver: str = "fast") -> MotionLP:

@@ -324,6 +324,35 @@ def test_velocity_lp_resolves_unbounded_or_infeasible():
     assert lp.velocity_lp(V, xi, 1.0).status == "unbounded"
 
 
+# Found by the duality property above: five support contacts, xi of 1e-5. At HiGHS' absolute
+# feasibility tolerance (1e-7) a row was violated by 8e-8, a hundredth of xi.
+_V_SMALL_XI = np.array(
+    [
+        [-0.51925468, -0.85461955, -0.15385253],
+        [0.64458585, 0.76453194, -0.49484013],
+        [0.64458585, 0.76453194, -0.13922245],
+        [-0.65856444, -0.75252433, -0.4726377],
+        [-0.29615791, 0.95513899, 0.27502553],
+    ]
+)
+
+
+@pytest.mark.parametrize("size", [1e-9, 1e-5, 1.0, 1e4])
+def test_velocity_lp_holds_its_rows_relative_to_the_size_of_xi(size):
+    V, xi = _V_SMALL_XI, size * np.array([0.0, 0.0, 0.0, 0.0, -1.0])
+    vel = lp.velocity_lp(V, xi, 1.0)
+    assert vel.status == "optimal"
+    assert np.all(V @ vel.x - xi >= -1e-9 * size)
+    forces = -vel.duals_ub  # the force LP's optimum: gravity balanced, its value xi . f
+    assert np.all(forces >= 0.0)
+    np.testing.assert_allclose(V.T @ forces, [0.0, 1.0, 0.0], atol=1e-9)
+    assert vel.value == pytest.approx(float(xi @ forces), rel=1e-9)
+    # the force LP by scipy on its own, at xi's unit size: max xi . f, V^T f = (0, W, 0), f >= 0
+    frc = linprog(-xi / size, A_eq=V.T, b_eq=[0.0, 1.0, 0.0], bounds=(0, None), method="highs")
+    assert frc.status == 0
+    assert vel.value == pytest.approx(-frc.fun * size, rel=1e-7)
+
+
 # ----------------------------------------------------------------------------------------
 # V_ob rows are gap gradients; xi is the hand's normal velocity
 # ----------------------------------------------------------------------------------------
