@@ -34,6 +34,7 @@ CONFIG_TEST_TIMES = {
     "ppo_scene_starts_no_curriculum.yml": "network",
     "ppo_lift_starts.yml": "network",
     "ppo_lift_starts_half.yml": "network",
+    "ppo_lift_leave.yml": "network",
     "ppo_residual.yml": "planner",
     "ppo_handover.yml": "planner",
     "ppo_grip.yml": "simulator",
