@@ -15,6 +15,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from grasp_env.arguments import real_array
 from grasp_env.errors import ComputationError
 
 #: Prefix of the info keys that hold a reward term (the env's, and shaping terms of wrappers).
@@ -118,22 +119,16 @@ class PlannerStarts(gym.Wrapper):
     def _file_weights(weights, files: int) -> np.ndarray:
         """``weights`` as probabilities, one per file; ValueError naming them where they are
         not as many non-negative finite numbers as files, with a positive sum."""
+        problem = (
+            f"weights must be {files} non-negative numbers with a positive sum, one per "
+            f"starts file, got {weights!r}"
+        )
         try:
-            w = np.array(weights, dtype=float)
-        except (TypeError, ValueError):
-            w = np.array([np.nan])
-        if (
-            w.shape != (files,)
-            or isinstance(weights, str)
-            or any(isinstance(x, bool) for x in weights)
-            or not np.isfinite(w).all()
-            or (w < 0).any()
-            or w.sum() <= 0
-        ):
-            raise ValueError(
-                f"weights must be {files} non-negative numbers with a positive sum, one per "
-                f"starts file, got {weights!r}"
-            )
+            w = real_array(weights, "weights", (files,))
+        except ValueError:
+            raise ValueError(problem) from None
+        if (w < 0).any() or w.sum() <= 0:
+            raise ValueError(problem)
         return w / w.sum()
 
     @property
