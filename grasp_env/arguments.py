@@ -51,15 +51,19 @@ def real_array(value: Any, name: str, shape: tuple[int, ...], what: str = "") ->
     ``ValueError`` naming ``name`` and showing the value: nested sequences of real numbers
     or an int or float array (a masked one only with nothing masked). ``what`` says what
     is expected (default: real numbers of ``shape``)."""
-    what = what or f"real numbers of shape {shape}"
-    value = unmasked(value, f"{name} must be {what}")
+
+    def expected() -> str:  # built only for an error: a step's check of its actions is hot
+        return f"{name} must be {what or f'real numbers of shape {shape}'}"
+
+    if isinstance(value, np.ma.MaskedArray):
+        value = unmasked(value, expected())
     is_array = isinstance(value, np.ndarray)
     try:
         arr = value if is_array else np.asarray(value, dtype=object)
     except (TypeError, ValueError):  # nesting numpy cannot even hold as objects
-        raise ValueError(f"{name} must be {what}, got {short(value)}") from None
+        raise ValueError(f"{expected()}, got {short(value)}") from None
     if arr.shape != shape:
-        raise ValueError(f"{name} must be {what}, got {short(value)} of shape {arr.shape}")
+        raise ValueError(f"{expected()}, got {short(value)} of shape {arr.shape}")
     if not (arr.dtype.kind in REAL_KINDS if is_array else all(map(is_real, arr.flat))):
         raise ValueError(
             f"{name} must be real numbers (int or float; not bool, str, complex or object), "

@@ -427,8 +427,20 @@ class FrictionlessGraspEnv(GraspEnvBase):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode (see Starting State). A refused reset (bad ``seed`` or ``options``,
         or a simulator error settling the hand they give) changes nothing: the episode in
-        progress, if any, and the random generator stay as they were. So everything that can
-        fail runs first, and the generator goes back to where it was if it fails."""
+        progress, if any, and the random generator stay as they were."""
+        error = self._begin_episode(seed, options)
+        info = self._info(dropped=False, step_info=None)
+        if error is not None:
+            info["sim_error"] = error
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), info
+
+    def _begin_episode(self, seed: Any, options: dict | None) -> str | None:
+        """The episode :meth:`reset` starts, made the env's; returns the simulator's error on
+        the way to a pre-liftoff placement, if any. Everything that can fail runs first, and
+        the generator goes back to where it was if it fails. (The batched env's autoreset
+        calls it alone: it reads the observation and the outcome from the episode.)"""
         opts = reset_options(options, self._load)
         try:
             if isinstance(seed, bool | np.bool_):
@@ -445,19 +457,13 @@ class FrictionlessGraspEnv(GraspEnvBase):
         except BaseException:
             rng.bit_generator.state = drawn_from  # the env's own generator draws nothing
             raise
-
         if seed is not None:
             super().reset(seed=seed)
             self.np_random.bit_generator.state = rng.bit_generator.state  # the draws above
         self._episode = episode
-        info = self._info(dropped=False, step_info=None)
-        if error is not None:
-            info["sim_error"] = error
         if self._renderer is not None:
             self._renderer.reset_view()
-        if self.render_mode == "human":
-            self.render()
-        return self._observation(), info
+        return error
 
     def _start(
         self, rng: np.random.Generator, opts: dict[str, Any]
@@ -578,29 +584,35 @@ class FrictionlessGraspEnv(GraspEnvBase):
     def _info(self, dropped: bool, step_info: np.ndarray | None) -> dict[str, Any]:
         """The info dict of the current state; ``step_info`` the kernel's of the step that
         led there (None at a reset: the reward terms are zero)."""
-        episode = self._episode
-        state, an = episode.state, episode.an
+        state = self._episode.state
         hand = state.hand.copy()
-        closure = bool(an[kernel.A_CLOSURE])
-        grip = float(an[kernel.A_GRIP])
         info = {
             "object_pose": state.object_pose.copy(),
             "palm_pose": hand[:3],
             "finger_angles": hand[3:],
             "contacts": [c.as_dict() for c in state.contacts],
+            "events": [e.kind for e in state.events],
+        } | self._outcome(dropped, step_info)
+        if self.always_compute_grip:
+            info["grip_objective"] = float(self._episode.an[kernel.A_GRIP])
+        return info
+
+    def _outcome(self, dropped: bool, step_info: np.ndarray | None) -> dict[str, Any]:
+        """The info entries of :meth:`_info` that the batched env batches: the closure, the
+        grip, the flags and the reward terms."""
+        state, an = self._episode.state, self._episode.an
+        closure = bool(an[kernel.A_CLOSURE])
+        out = {
             "form_closure": closure,
-            "grip_force": grip if closure else math.inf,
+            "grip_force": float(an[kernel.A_GRIP]) if closure else math.inf,
             "jammed": bool(state.jammed),
             "hand_blocked": bool(state.hand_blocked),
             "dropped": bool(dropped),
-            "events": [e.kind for e in state.events],
             "is_success": bool(an[kernel.A_SUCCESS]),
         }
         for i, key in enumerate(REWARD_KEYS):
-            info[key] = 0.0 if step_info is None else float(step_info[kernel.I_TERMS + i])
-        if self.always_compute_grip:
-            info["grip_objective"] = grip
-        return info
+            out[key] = 0.0 if step_info is None else float(step_info[kernel.I_TERMS + i])
+        return out
 
 
 __all__ = ["REWARD_TERMS", "FrictionlessGraspEnv"]

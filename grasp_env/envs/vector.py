@@ -293,12 +293,14 @@ class FrictionlessGraspVectorEnv(VectorEnv):
                 flags[2:].copy(), values.copy(), errors, friction_jams
             )
             infos["_final_info"] = ended.copy()
-            for i in np.flatnonzero(ended):
-                obs, reset_info = self.envs[i].reset()
+            for i in np.flatnonzero(ended):  # reset() without its info's poses and contacts
+                env = self.envs[i]
+                env._begin_episode(None, None)
                 self._load(i)
-                observations[i] = obs
-                flags[2:, i] = [reset_info[key] for key in INFO_FLAGS]
-                values[:, i] = [reset_info[key] for key in INFO_VALUES]
+                observations[i] = env._observation()
+                outcome = env._outcome(False, None)
+                flags[2:, i] = [outcome[key] for key in INFO_FLAGS]
+                values[:, i] = [outcome[key] for key in INFO_VALUES]
         return observations, rewards, terminated, truncated, infos
 
     def _step_infos(
@@ -353,6 +355,4 @@ class FrictionlessGraspVectorEnv(VectorEnv):
 
 def _own_arrays(model):
     """``model`` with copies of its arrays."""
-    return model._replace(
-        **{k: v.copy() for k, v in model._asdict().items() if isinstance(v, np.ndarray)}
-    )
+    return model._make([v.copy() if isinstance(v, np.ndarray) else v for v in model])
