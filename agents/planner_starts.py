@@ -54,6 +54,7 @@ import numpy as np
 import grasp_env  # noqa: F401  (registers the env ids)
 from agents.episodes import seed_problem
 from agents.scripted_policy import ScriptedPolicy
+from agents.wrappers import read_starts
 from grasp_env.cli import out_file, seed_int, workers
 from grasp_env.envs.checks import palm_problem, workspace_problem
 from grasp_env.planning import approach_path, plan_grasp
@@ -163,16 +164,7 @@ def select(path, travel: float) -> list[dict]:
     widths (:func:`palm_travel`); ValueError naming a bad file or distance."""
     if not (isinstance(travel, int | float) and math.isfinite(travel) and travel >= 0):
         raise ValueError(f"--palm-travel must be a finite distance >= 0, got {travel!r}")
-    try:
-        with open(path, "rb") as f:
-            lifts = pickle.load(f)
-    except (OSError, pickle.UnpicklingError, EOFError) as exc:
-        raise ValueError(f"--select {str(path)!r} is not a starts file: {exc}") from None
-    if not isinstance(lifts, list) or not all(
-        isinstance(t, dict) and {"scene", "hands", "poses"} <= t.keys() for t in lifts
-    ):
-        raise ValueError(f"--select {str(path)!r} is not a starts file (a list of lifts)")
-    return [t for t in lifts if palm_travel(t) > travel]
+    return [t for t in read_starts(path, "--select") if palm_travel(t) > travel]
 
 
 def _planned(seed: int, approach: bool) -> dict | None:

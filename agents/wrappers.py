@@ -60,6 +60,27 @@ class ApproachShaping(gym.Wrapper):
         return obs, reward + shaping, terminated, truncated, {**info, "reward_approach": shaping}
 
 
+def read_starts(path: str | Path, name: str) -> list[dict]:
+    """The lifts of a starts file (``python -m agents.planner_starts`` writes them): a list
+    of ``{"seed", "scene", "hands", "poses"}``; ValueError naming ``name`` and the file
+    where it is missing or holds something else."""
+    if not Path(path).is_file():
+        raise ValueError(
+            f"{name} {str(path)!r} is not a file: write it first with "
+            f"python -m agents.planner_starts --out {path}"
+        )
+    try:
+        with open(path, "rb") as f:
+            lifts = pickle.load(f)
+    except Exception as exc:  # unpickling garbage raises almost anything
+        raise ValueError(f"{name} {str(path)!r} is not a starts file: {exc!r}") from None
+    if not isinstance(lifts, list) or not all(
+        isinstance(t, dict) and {"scene", "hands", "poses"} <= t.keys() for t in lifts
+    ):
+        raise ValueError(f"{name} {str(path)!r} is not a starts file (a list of lifts)")
+    return lifts
+
+
 class PlannerStarts(gym.Wrapper):
     """Starts along the planner's lifts, a reverse curriculum (training only).
 
@@ -96,13 +117,7 @@ class PlannerStarts(gym.Wrapper):
             raise ValueError(f"starts must be a file name or a list of them, got {starts!r}")
         self.lifts, self._files = [], []  # the pool, and each file's range in it
         for path in paths:
-            if not Path(path).is_file():
-                raise ValueError(
-                    f"starts {str(path)!r} is not a file: write it first with "
-                    f"python -m agents.planner_starts --out {path}"
-                )
-            with open(path, "rb") as f:
-                lifts = pickle.load(f)
+            lifts = read_starts(path, "starts")
             if not lifts:
                 raise ValueError(f"starts {str(path)!r} holds no lift")
             self._files.append((len(self.lifts), len(lifts)))

@@ -184,6 +184,18 @@ def test_a_missing_starts_file_is_named_with_the_command_that_writes_it(tmp_path
         PlannerStarts(gym.make(ENV_ID), missing)
 
 
+@pytest.mark.parametrize(
+    "content", [b"not a pickle", pickle.dumps({"seed": 1}), pickle.dumps([{"seed": 1}])]
+)
+def test_a_file_that_holds_no_lifts_is_named_by_both_readers(tmp_path, content):
+    path = tmp_path / "bad.pkl"
+    path.write_bytes(content)
+    with pytest.raises(ValueError, match=r"^starts .*bad\.pkl.* is not a starts file"):
+        PlannerStarts(gym.make(ENV_ID), str(path))
+    with pytest.raises(ValueError, match=r"^--select .*bad\.pkl.* is not a starts file"):
+        select(path, 0.01)
+
+
 def test_approach_and_scripted_states_exclude_each_other():
     with pytest.raises(ValueError, match=r"--approach and --scripted"):
         collect(1, 0, approach=True, scripted=True)
