@@ -160,7 +160,7 @@ def step_parts(env_id: str, n: int, steps: int, pool: int = POOL) -> dict[str, f
     fallbacks = 0
     with (
         timing(vector, "step_batch", parts, "compiled step"),
-        timing(type(venv.envs[0]), "reset", parts, "resets"),
+        timing(type(venv.envs[0]), "_begin_episode", parts, "resets"),
         timing(vector.Episode, "advance", parts, "Python's steps"),
     ):
         start = time.perf_counter()

@@ -17,7 +17,7 @@ from gymnasium import spaces
 from grasp_env.arguments import integer
 from grasp_env.core.scene import Scene
 from grasp_env.core.state import State
-from grasp_env.envs.checks import action_values, one_of
+from grasp_env.envs.checks import RenderModes, action_values, one_of
 from grasp_env.envs.episode import Episode, episode_constants, state_arrays
 from grasp_env.kernel import step as kernel
 from grasp_env.render import Renderer
@@ -44,7 +44,10 @@ class GraspEnvBase(gym.Env):
         render_width, render_height: frame size in pixels (16 to :data:`MAX_RENDER_SIZE`).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": RenderModes(["human", "rgb_array"]),
+        "render_fps": 30,
+    }
     max_finger_step: float
     max_palm_step: np.ndarray
     #: Coulomb friction at every contact that stops a step it can jam (0: none).

@@ -74,6 +74,18 @@ def one_of(value: Any, name: str, choices, also: str = "") -> Any:
     return value
 
 
+class RenderModes(list):
+    """The render modes an env's ``metadata`` declares: a list whose ``in`` refuses a mode
+    that is not a string, with a ``ValueError`` naming ``render_mode`` and the value.
+    ``gymnasium.make`` tests a requested mode with ``in`` and string methods before the env
+    sees it, and would fail on a number with an error naming neither."""
+
+    def __contains__(self, mode: object) -> bool:
+        if not isinstance(mode, str):
+            raise ValueError(f"render_mode must be None or one of {list(self)}, got {short(mode)}")
+        return super().__contains__(mode)
+
+
 def numbers(value: Any, name: str, size: int, lo: float, hi: float) -> np.ndarray:
     if not isinstance(value, list | tuple | np.ndarray) or len(value) != size:
         raise ValueError(f"{name} must be {size} numbers, got {value!r}")

@@ -285,3 +285,11 @@ def test_touched_parts_time_each_part_of_touching_moves():
     # every part was timed: random actions from fig13's start touch the object (no timing
     # is compared: the numbers of a tiny run on a shared machine mean nothing)
     assert all(t > 0.0 for t in parts)
+
+
+def test_step_parts_time_the_resets_the_batch_makes():
+    """Each part is the time of what the batched step calls: the episodes that end start
+    new ones (the first 100 random-action steps of 16 lifting episodes end some)."""
+    parts = batched.step_parts("FrictionlessGraspLift-v0", 16, 100, pool=4)
+    assert parts["compiled step"] > 0.0
+    assert parts["resets"] > 0.0

@@ -107,6 +107,8 @@ KWARGS = [
     ("max_palm_step_inf", {"max_palm_step": (0.02, math.inf, 0.05)}, r"max_palm_step", r"inf"),
     ("start_unknown", {"start": "lifted"}, r"start", r"'lifted'"),
     ("render_mode_unknown", {"render_mode": "video"}, r"render_mode", r"'video'"),
+    ("render_mode_int", {"render_mode": 5}, r"render_mode", r"5"),
+    ("render_mode_list", {"render_mode": ["rgb_array"]}, r"render_mode", r"\['rgb_array'\]"),
     ("contact_tol_inf", {"contact_tol": math.inf}, r"contact_tol", r"inf"),
     ("contact_tol_zero", {"contact_tol": 0.0}, r"contact_tol", r"0\.0"),
     ("contact_tol_below_simulator", {"contact_tol": 1e-12}, r"contact_tol", r"1e-12"),
@@ -445,6 +447,18 @@ RESETS = [
     ("scene_complex", {"options": {"scene": 1j}}, r"options\['scene'\]", r"1j"),
     ("seed_negative", {"seed": -1}, r"seed", r"-1"),
 ]  # fmt: skip
+
+
+@pytest.mark.parametrize("mode", [5, ["rgb_array"], b"rgb_array", None.__class__])
+def test_made_env_refuses_a_render_mode_that_is_not_a_string(mode) -> None:
+    """gymnasium.make reads the mode before the env does: still an error naming it."""
+    with pytest.raises(ValueError, match=r"^render_mode must be None or one of"):
+        gym.make(ENV_ID, render_mode=mode, **KW)
+    with pytest.raises(ValueError, match=r"render_mode"):
+        gym.make_vec(ENV_ID, num_envs=2, render_mode=mode)
+    env = gym.make(ENV_ID, render_mode="rgb_array", **KW)  # the modes it has still work
+    env.reset(seed=0)
+    assert env.render().ndim == 3
 
 
 def made_twins(make) -> tuple[gym.Env, gym.Env]:
