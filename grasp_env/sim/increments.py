@@ -139,8 +139,11 @@ def advance(model, q, h0, dh, s_end, known, use_known, events, solves):
         )
         ms = _count(ms, s_star, event, event_keys)
         if s_star - ms.s >= s_eps and ms.run.count <= CHATTER:
-            # 5. update: the move goes on from the event
-            events.append((event, s_star, event_keys))
+            # 5. update: the move goes on from the event. A fold located ahead is logged as
+            # a jam only where the hand stops at it (below, or in _cannot_move): the move
+            # may still go on from there.
+            if event != JAM:
+                events.append((event, s_star, event_keys))
             ms = _moved(ms, q_star, s_star)
             continue
         # The event sits right here.

@@ -118,7 +118,8 @@ def velocity_lp(V: np.ndarray, xi: np.ndarray, weight: float) -> LPResult:
         return res
     try:
         tight = solve(cost, **problem, tolerance=TIGHT)
+        if tight.status == "optimal":
+            res = tight
     except SolverError:
-        tight = res
-    res = tight if tight.status == "optimal" else res
+        pass  # the first answer stands
     return LPResult(res.status, res.x * scale, res.value * scale, res.duals_ub, res.duals_eq)

@@ -1343,6 +1343,47 @@ def test_square_wedged_between_parallel_fingertips(height: float, closing: tuple
 # ---------------------------------------------------------------------------------------
 
 
+def test_a_fold_located_ahead_is_logged_as_one_jam_where_the_hand_stops() -> None:
+    """A pentagon on the support against finger 2 while the palm lowers and turns: the
+    event search locates a fold a little ahead, the move goes on to it and the hand stops
+    there. The log holds that jam once, as its last event (it held it twice: once when the
+    fold was located, once when the hand stopped), and the jam is genuine there."""
+    scene = grasp_env.load_scene({
+        "name": "fold_ahead",
+        "gravity": 9.81,
+        "palm": {"width": 1.0, "thickness": 0.15, "pose": [0.014953080375357, 0.71, 0.0]},
+        "fingers": [
+            {"length": 0.6, "thickness": 0.05, "angle": -math.pi / 2, "limits": [-math.pi, 0.0]},
+            {"length": 0.7, "thickness": 0.05, "angle": -math.pi / 2, "limits": [-math.pi, 0.0]},
+        ],
+        "object": {
+            "vertices": [
+                [-0.0009832412334686465, 0.0], [0.05987191868597047, 0.0],
+                [0.056562412476674415, 0.0921442950399914],
+                [0.007341724182200277, 0.1998587847422856],
+                [-0.03505056993342258, 0.1452317262794504],
+            ],
+            "mass": 0.2467616000582789,
+        },
+    })  # fmt: skip
+    sim = Simulator(scene)
+    q = np.array([0.00660678683248418, 0.041737624338887, -1.6066974557941935])
+    hand = np.array([0.02604881945110986, 0.5516798146886124, 0.14417306356069376,
+                     -0.7400257516766828, -2.452611243512706])  # fmt: skip
+    target = np.array([0.03196251097180077, 0.5398807796162857, 0.098061605020731,
+                       -0.7790378768111509, -2.482911851790027])  # fmt: skip
+    state = sim.settle(q, hand)
+    np.testing.assert_array_equal(state.object_pose, q)  # held there: nothing falls
+    new = sim.move_hand(state, palm=target[:3], fingers=target[3:])
+    kinds = [e.kind for e in new.events]
+    assert new.jammed and kinds.count("jam") == 1 and kinds[-1] == "jam", kinds
+    assert_invariants(new, tol_of(sim), "fold ahead")
+    s = new.events[-1].s
+    assert 0.0 < s < 1.0
+    np.testing.assert_allclose(new.hand, hand + s * (target - hand), atol=1e-12)
+    assert_jam_genuine(new, target - hand, "fold ahead")
+
+
 def lowest_hand_y(scene: grasp_env.Scene, hand: np.ndarray) -> float:
     return min(float(p[:, 1].min()) for p in hand_polygons_W(scene, hand).values())
 
