@@ -10,9 +10,10 @@ types), step_times (the step-time tail on adversarial shapes), ppo (PPO training
 (the scripted policy's episode rate against the simulator before its compiled core), step_parts
 (the env's shell and the compiled move timed apart, unprofiled), batched (the batched env of
 ``gymnasium.make_vec`` against N and threads, resets, and where a batched step's time goes),
-bundled (the planner and the scripted policy on every bundled scene, ``bundled_scenes.py``;
-left out of ``--quick``), targets (last: every target the pages in the output folder state,
-gathered on ``targets.md``)."""
+native (inside the compiled batched step, function by function: ``native_profile.py``, with
+perf and gdb), bundled (the planner and the scripted policy on every bundled scene,
+``bundled_scenes.py``; left out of ``--quick``), targets (last: every target the pages in the
+output folder state, gathered on ``targets.md``)."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from benchmarks import (
     blas_variation,
     bundled_scenes,
     memory,
+    native_profile,
     planner_shapes,
     ppo_throughput,
     profile_step,
@@ -56,6 +58,7 @@ SUITE = {
         budget=3.0 if quick else 20.0, rounds=2 if quick else 3, out=out / "scripted_speedup.md"
     ),
     "batched": lambda quick, out: batched.run(quick, out / "batched.md"),
+    "native": lambda quick, out: native_profile.run(quick, out / "native_profile.md"),
     "bundled": lambda quick, out: bundled_scenes.run(out / "bundled_scenes.md"),
     "targets": lambda quick, out: targets.run(out, out / targets.PAGE_NAME),
 }

@@ -19,6 +19,7 @@ from benchmarks import (
     blas_worker,
     edge_probe,
     memory,
+    native_profile,
     planner_shapes,
     profile_step,
     scripted_speedup,
@@ -75,6 +76,66 @@ def test_piece_writes_markdown(piece, tmp_path):
     assert piece(out) == out
     text = out.read_text()
     assert text.startswith("# ") and "Machine:" in text and "| ---" in text
+
+
+#: A report of perf (``--stdio --no-children --sort dso,sym``) and gdb's answers to ``info
+#: symbol`` for its compiled addresses, in their sorted order, made up for the test below.
+PERF_REPORT = """# Overhead  Shared Object  Symbol
+# ........  .............  ......
+#
+    12.50%  [JIT] tid 7                                          [.] 0x00007f0000001000
+    10.00%  [JIT] tid 7                                          [.] 0x00007f0000002000
+     7.50%  libc.so.6                                            [.] malloc
+     5.00%  libm.so.6                                            [.] __sincos_fma
+     2.50%  [JIT] tid 7                                          [.] 0x00007f0000003000
+     2.50%  _multiarray_umath.cpython-311-x86_64-linux-gnu.so    [.] PyArray_NewFromDescr_int
+     2.00%  [JIT] tid 7                                          [.] 0x00007f0000004000
+     1.25%  [kernel.kallsyms]                                    [k] do_syscall_64
+"""
+GDB_ANSWERS = """warning: could not find '.gnu_debugaltlink' file
+NRT_incref + 9 in section .ltext of <in-memory@0x5600>
+grasp_env::sim::pose::newton[abi:v248][abi:c8tJ](Array<double, 2, C, mutable, aligned>) + 33 \
+in section .text of <in-memory@0x5601>
+No symbol matches 0x00007f0000003000.
+_ZN9grasp_env6kernel5batch8step_oneB3v17B38c8tJTIeFIjxEx458ListType in section .text of <x>
+"""
+
+
+def test_native_profile_groups_what_perf_sampled_by_gdb_names():
+    rows = native_profile.parse_report(PERF_REPORT)
+    assert len(rows) == 8 and rows[0] == (12.5, "[JIT] tid 7", "0x00007f0000001000")
+    assert rows[-1] == (1.25, "[kernel.kallsyms]", "do_syscall_64")
+    addresses = sorted(s for _, _, s in rows if s.startswith("0x"))
+    names = native_profile.parse_symbols(GDB_ANSWERS)
+    assert len(names) == len(addresses) and names[2] is None
+    groups, functions = native_profile.aggregate(rows, dict(zip(addresses, names, strict=True)))
+    assert groups == {
+        native_profile.REFCOUNT: 12.5,
+        "compiled: grasp_env.sim.pose": 10.0,
+        native_profile.ALLOCATION: 7.5,
+        native_profile.MATH: 5.0,
+        native_profile.UNNAMED: 2.5,
+        native_profile.PYTHON: 2.5,
+        "compiled: grasp_env.kernel.batch": 2.0,
+        native_profile.KERNEL: 1.25,
+    }
+    assert functions[("grasp_env.sim.pose.newton", "compiled: grasp_env.sim.pose")] == 10.0
+    assert functions[("grasp_env.kernel.batch.step_one", "compiled: grasp_env.kernel.batch")] == 2.0
+
+
+def test_native_profile_writes_its_page_or_says_why_not(tmp_path):
+    """Where perf and gdb can sample this process's child the page has its tables; where
+    they cannot, it says why (a missing tool, or perf or gdb refused) and measures nothing."""
+    out = native_profile.run(True, tmp_path / "page.md", envs=2, seconds=0.3)
+    text = out.read_text()
+    assert text.startswith("# ") and "Machine:" in text
+    if "not measured here" in text:
+        assert "Traceback" not in text and (
+            "not found" in text or "failed" in text or "gdb" in text
+        )
+    else:
+        assert "## By group" in text and native_profile.REFCOUNT in text
+        assert "compiled: grasp_env.sim." in text
 
 
 def test_move_costs_put_each_move_in_one_kind():
