@@ -121,18 +121,20 @@ def function_name(gdb_name: str) -> str:
     return name.replace("::", ".")
 
 
-#: One line of ``perf report --sort dso,sym``: share, shared object, kind, symbol.
-_REPORT_LINE = re.compile(r"^\s*([\d.]+)%\s+(.+?)\s+\[[.kgu]\]\s+(.+?)\s*$")
+#: One line of ``perf report -n --sort dso,sym``: share, samples, shared object, kind, symbol.
+_REPORT_LINE = re.compile(r"^\s*[\d.]+%\s+(\d+)\s+(.+?)\s+\[[.kgu]\]\s+(.+?)\s*$")
 
 
-def parse_report(text: str) -> list[tuple[float, str, str]]:
-    """``(share in %, shared object, symbol)`` of each line of ``perf report --stdio
-    --no-children --sort dso,sym`` (compiled code's symbol is its address)."""
+def parse_report(text: str) -> list[tuple[int, str, str]]:
+    """``(samples, shared object, symbol)`` of each line of ``perf report --stdio -n
+    --no-children --sort dso,sym`` (compiled code's symbol is its address). Shares are taken
+    from the counts: perf's percentages, rounded to 0.01 line by line, add up to well over
+    100 where thousands of addresses have a sample or two."""
     rows = []
     for line in text.splitlines():
         m = _REPORT_LINE.match(line)
         if m and not line.lstrip().startswith("#"):
-            rows.append((float(m.group(1)), m.group(2), m.group(3)))
+            rows.append((int(m.group(1)), m.group(2), m.group(3)))
     return rows
 
 
@@ -148,11 +150,13 @@ def parse_symbols(text: str) -> list[str | None]:
     return names
 
 
-def aggregate(rows: list[tuple[float, str, str]], names: dict[str, str | None]):
-    """Shares by group and by function: ``(groups, functions)``, each a Counter of %;
-    ``names`` maps compiled code's addresses to gdb's names."""
+def aggregate(rows: list[tuple[int, str, str]], names: dict[str, str | None]):
+    """Shares of the samples by group and by function: ``(groups, functions)``, each a
+    Counter of %; ``names`` maps compiled code's addresses to gdb's names."""
     groups, functions = Counter(), Counter()
-    for share, dso, symbol in rows:
+    total = sum(samples for samples, _, _ in rows)
+    for samples, dso, symbol in rows:
+        share = 100.0 * samples / total
         name = symbol
         if symbol.startswith("0x"):
             gdb_name = names.get(symbol)
@@ -195,8 +199,8 @@ def sample(env_id: str, envs: int, seconds: float) -> tuple[str, dict[str, str |
             if record.returncode != 0 or not data.exists():
                 raise RuntimeError(f"perf record failed: {record.stderr.strip()[-300:]}")
             report = subprocess.run(
-                ["perf", "report", "-i", str(data), "--stdio", "--no-children", "--sort",
-                 "dso,sym"],
+                ["perf", "report", "-i", str(data), "--stdio", "-n", "--no-children",
+                 "--sort", "dso,sym"],
                 capture_output=True, text=True, check=True,
             ).stdout  # fmt: skip
             addresses = sorted({s for _, _, s in parse_report(report) if s.startswith("0x")})
@@ -235,11 +239,10 @@ def run(quick: bool, out: Path, env: str = ENV_ID, envs: int = ENVS, seconds=Non
         return write(out, title, [f"{command}: not measured here ({why})."])
     rows = parse_report(report)
     groups, functions = aggregate(rows, names)
-    total = sum(groups.values())
     body = [
         f"{command}: {env} with {envs} envs on one thread, random actions, {seconds:g} s of "
-        f"perf samples at {FREQUENCY} Hz (shares of all the process's samples; "
-        f"{total:.1f}% listed by perf at its precision).",
+        f"perf samples at {FREQUENCY} Hz: {sum(n for n, _, _ in rows):,} samples of the "
+        "process, the shares below of them all.",
         "",
         "## By group",
         "",

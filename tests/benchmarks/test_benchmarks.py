@@ -78,19 +78,22 @@ def test_piece_writes_markdown(piece, tmp_path):
     assert text.startswith("# ") and "Machine:" in text and "| ---" in text
 
 
-#: A report of perf (``--stdio --no-children --sort dso,sym``) and gdb's answers to ``info
-#: symbol`` for its compiled addresses, in their sorted order, made up for the test below.
-PERF_REPORT = """# Overhead  Shared Object  Symbol
-# ........  .............  ......
+#: A report of perf (``--stdio -n --no-children --sort dso,sym``) and gdb's answers to ``info
+#: symbol`` for its compiled addresses, in their sorted order, made up for the test below: 80
+#: samples in all, so that the shares are the counts over 80 (not perf's rounded percentages,
+#: which the test sets off by a little).
+PERF_REPORT = """# Overhead       Samples  Shared Object  Symbol
+# ........  ............  .............  ......
 #
-    12.50%  [JIT] tid 7                                          [.] 0x00007f0000001000
-    10.00%  [JIT] tid 7                                          [.] 0x00007f0000002000
-     7.50%  libc.so.6                                            [.] malloc
-     5.00%  libm.so.6                                            [.] __sincos_fma
-     2.50%  [JIT] tid 7                                          [.] 0x00007f0000003000
-     2.50%  _multiarray_umath.cpython-311-x86_64-linux-gnu.so    [.] PyArray_NewFromDescr_int
-     2.00%  [JIT] tid 7                                          [.] 0x00007f0000004000
-     1.25%  [kernel.kallsyms]                                    [k] do_syscall_64
+    12.50%            10  [JIT] tid 7                                  [.] 0x00007f0000001000
+    10.01%             8  [JIT] tid 7                                  [.] 0x00007f0000002000
+     7.50%             6  libc.so.6                                    [.] malloc
+     5.00%             4  libm.so.6                                    [.] __sincos_fma
+     2.50%             2  [JIT] tid 7                                  [.] 0x00007f0000003000
+     2.50%             2  _multiarray_umath.cpython-311-x86_64-linux-gnu.so  [.] PyArray_New
+     2.00%             1  [JIT] tid 7                                  [.] 0x00007f0000004000
+     1.25%             1  [kernel.kallsyms]                            [k] do_syscall_64
+    60.00%            46  libpython3.11.so.1.0                         [.] _PyEval_EvalFrameDefault
 """
 GDB_ANSWERS = """warning: could not find '.gnu_debugaltlink' file
 NRT_incref + 9 in section .ltext of <in-memory@0x5600>
@@ -103,24 +106,29 @@ _ZN9grasp_env6kernel5batch8step_oneB3v17B38c8tJTIeFIjxEx458ListType in section .
 
 def test_native_profile_groups_what_perf_sampled_by_gdb_names():
     rows = native_profile.parse_report(PERF_REPORT)
-    assert len(rows) == 8 and rows[0] == (12.5, "[JIT] tid 7", "0x00007f0000001000")
-    assert rows[-1] == (1.25, "[kernel.kallsyms]", "do_syscall_64")
+    assert len(rows) == 9 and rows[0] == (10, "[JIT] tid 7", "0x00007f0000001000")
+    assert rows[7] == (1, "[kernel.kallsyms]", "do_syscall_64")
     addresses = sorted(s for _, _, s in rows if s.startswith("0x"))
     names = native_profile.parse_symbols(GDB_ANSWERS)
     assert len(names) == len(addresses) and names[2] is None
     groups, functions = native_profile.aggregate(rows, dict(zip(addresses, names, strict=True)))
-    assert groups == {
-        native_profile.REFCOUNT: 12.5,
-        "compiled: grasp_env.sim.pose": 10.0,
-        native_profile.ALLOCATION: 7.5,
-        native_profile.MATH: 5.0,
-        native_profile.UNNAMED: 2.5,
-        native_profile.PYTHON: 2.5,
-        "compiled: grasp_env.kernel.batch": 2.0,
-        native_profile.KERNEL: 1.25,
+    expected = {  # samples of 80
+        native_profile.REFCOUNT: 10,
+        "compiled: grasp_env.sim.pose": 8,
+        native_profile.ALLOCATION: 6,
+        native_profile.MATH: 4,
+        native_profile.UNNAMED: 2,
+        native_profile.PYTHON: 2 + 46,
+        "compiled: grasp_env.kernel.batch": 1,
+        native_profile.KERNEL: 1,
     }
+    assert groups.keys() == expected.keys()
+    for group, samples in expected.items():
+        assert groups[group] == pytest.approx(100.0 * samples / 80, rel=1e-12), group
     assert functions[("grasp_env.sim.pose.newton", "compiled: grasp_env.sim.pose")] == 10.0
-    assert functions[("grasp_env.kernel.batch.step_one", "compiled: grasp_env.kernel.batch")] == 2.0
+    assert functions[
+        ("grasp_env.kernel.batch.step_one", "compiled: grasp_env.kernel.batch")
+    ] == pytest.approx(1.25)
 
 
 def test_native_profile_writes_its_page_or_says_why_not(tmp_path):
