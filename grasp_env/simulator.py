@@ -342,7 +342,7 @@ class Simulator:
         clipped. Where the move left the object untouched, the state keeps ``state``'s
         contacts."""
         s_reached, s_end, blocked, jammed, untouched = out[move.OUT_S :].tolist()
-        events = [Event("joint_limit", 1.0)] if joint_limit else []
+        events = [Event("joint_limit", 0.0)] if joint_limit else []  # clipped before it moves
         if log:
             events.extend(_events(log))
         # The hand is blocked by the support only if it got there (a jam may stop it first).

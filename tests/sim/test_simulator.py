@@ -1487,6 +1487,22 @@ def test_joint_limits_clip_and_report(case: str) -> None:
     np.testing.assert_allclose(state.object_pose, start.object_pose, atol=1e-12)
 
 
+def test_a_clipped_target_is_reported_before_the_events_of_the_move() -> None:
+    """A finger target beyond its limit while the palm goes down into the support: the
+    clipping is logged at s = 0 (the target is clipped before the hand moves), then the
+    support cuts the path short, so the log's ``s`` never goes back (the clipping was logged
+    at s = 1, ahead of the path's end at 0.025)."""
+    sim = Simulator(scene_of("fig13"))
+    start = sim.reset()
+    x, y, theta = start.hand[:3]
+    q1, q2 = start.finger_angles
+    state = sim.move_hand(start, palm=(x, y - 0.4, theta), fingers=(q1 - 5.0, q2))
+    assert [e.kind for e in state.events] == ["joint_limit", "hand_blocked"]
+    assert state.hand_blocked and state.events[0].s == 0.0
+    s = [e.s for e in state.events]
+    assert s == sorted(s) and 0.0 < s[-1] < 1.0
+
+
 # ---------------------------------------------------------------------------------------
 # 10. Bad arguments
 # ---------------------------------------------------------------------------------------
