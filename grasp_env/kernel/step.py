@@ -239,6 +239,15 @@ def conclude(model, consts, settings, q, h, keys, rows, an, ep, obs, low, high, 
     return observation(model, consts, settings, q, h, obs, low, high)
 
 
+@njit(cache=CACHE, inline="always")
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.all(a == b)`` for 1-D arrays of one length, without its arrays."""
+    for i in range(a.shape[0]):
+        if a[i] != b[i]:
+            return False
+    return True
+
+
 @njit(cache=CACHE)
 def finish_step(model, consts, settings, state, moved, a, an, ep, obs, low, high, info):
     """The step after the move: ``moved = (out, keys, rows)`` of the move from ``state = (q,
@@ -258,7 +267,7 @@ def finish_step(model, consts, settings, state, moved, a, an, ep, obs, low, high
     if untouched:  # the object and its contacts are as they were
         new_keys, new_rows = keys, rows
     new_an = an.copy()
-    same = untouched or (np.all(q_new == q) and np.all(h_new == h))
+    same = untouched or (_same(q_new, q) and _same(h_new, h))
     if not same and not analyse(consts, settings, q_new, h_new, new_keys, new_rows, new_an):
         return GRIP_UNDECIDED, obs, q_new, h_new, new_keys, new_rows, new_an
     an[:] = new_an

@@ -17,7 +17,7 @@ from numba import njit
 from grasp_env.compiled import CACHE
 from grasp_env.sim import clearance
 from grasp_env.sim.placement import EDGE, contact_rows
-from grasp_env.sim.pose import constraint_matrix, independent_forces
+from grasp_env.sim.pose import independent_forces
 from grasp_env.solvers import dense
 
 
@@ -70,14 +70,21 @@ def violations(
     ends = _edge_ends(T, L)
     lost, force, residual = -1, 0.0, 0.0
     if m > 0:
-        W = constraint_matrix(P, N, com).T.copy()
-        W[2] /= length  # moments in weight x palm width, like the forces' weight
+        W = np.empty((3, m))  # the wrench columns, moments in weight x palm width
+        for i in range(m):
+            W[0, i], W[1, i] = N[i, 0], N[i, 1]
+            W[2, i] = ((P[i, 0] - com[0]) * N[i, 1] - (P[i, 1] - com[1]) * N[i, 0]) / length
         ok = False
         if m <= 3:
             lam, ok = independent_forces(W, g)
         if ok:
-            r = dense.matvec(W, lam) - g
-            residual = math.sqrt(dense.dot(r, r))
+            for k in range(3):
+                acc = 0.0
+                for i in range(m):
+                    acc += W[k, i] * lam[i]
+                r = acc - g[k]
+                residual += r * r
+            residual = math.sqrt(residual)
             lost = int(np.argmin(lam))
             force = lam[lost]
         else:

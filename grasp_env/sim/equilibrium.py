@@ -139,7 +139,7 @@ def determined(model, world: np.ndarray, q: np.ndarray, E: np.ndarray) -> bool:
     for k in range(3):
         for j in range(3):
             Ws[k, j] *= model.scale[k]
-    if abs(dense.det(Ws)) < 1e-8:
+    volume, lam, ok = dense.det_and_solve(Ws, W, model.gravity)
+    if abs(volume) < 1e-8:
         return False
-    lam, ok = dense.solve(W, model.gravity)
     return ok and lam.min() > 1e-6 * model.weight

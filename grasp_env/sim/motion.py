@@ -72,7 +72,7 @@ def solve_lp(
     V = free_rows(model, constraint_matrix(P, N, q[:2]))
     xi = contact_xi(model, h, dh, keys, P, N)
     Vl = V * model.per_length
-    if m > 0 and np.all(xi == 0.0):
+    if m > 0 and not np.any(xi):
         # The hand moves no contact (the object on the support, the fingers in free space):
         # v = 0 is optimal, with every contact tight, whenever the contacts hold the object
         # exactly; only the borderline cases need the LP.
@@ -83,18 +83,43 @@ def solve_lp(
         return JAM, 0.0, keys, np.zeros(3)
     if status == velocity_lp.UNBOUNDED:
         return FALL, 0.0, keys, np.zeros(3)
+    # the least-motion twist among the optimal ones: the contacts with force kept tight,
+    # the others kept apart or tight, in twists scaled to displacements
     pos = lam > model.ftol
-    Vs = V * model.scale
-    w, ok = least_norm.least_norm(Vs[pos].copy(), xi[pos] / L, Vs[~pos].copy(), xi[~pos] / L, 1e-9)
-    if ok:
-        w = w * L
-    else:
-        w = v_lp * L * model.per_length / model.scale
-    v = w * model.scale
-    slack = dense.matvec(V, v) - xi
-    bound = 1e-9 * max(L, np.abs(xi).max() if m > 0 else 0.0)
-    tight = pos | (slack <= bound)
-    return MOVE, value * L, keys[tight].copy(), v
+    n_pos = 0
+    for i in range(m):
+        n_pos += pos[i]
+    A_eq, b_eq = np.empty((n_pos, 3)), np.empty(n_pos)
+    A_in, b_in = np.empty((m - n_pos, 3)), np.empty(m - n_pos)
+    e = f = 0
+    for i in range(m):
+        if pos[i]:
+            for k in range(3):
+                A_eq[e, k] = V[i, k] * model.scale[k]
+            b_eq[e] = xi[i] / L
+            e += 1
+        else:
+            for k in range(3):
+                A_in[f, k] = V[i, k] * model.scale[k]
+            b_in[f] = xi[i] / L
+            f += 1
+    w, ok = least_norm.least_norm(A_eq, b_eq, A_in, b_in, 1e-9)
+    v = np.empty(3)
+    for k in range(3):
+        if ok:
+            v[k] = w[k] * L * model.scale[k]
+        else:
+            v[k] = v_lp[k] * L * model.per_length[k] / model.scale[k] * model.scale[k]
+    largest = 0.0
+    for i in range(m):
+        largest = max(largest, abs(xi[i]))
+    bound = 1e-9 * max(L, largest)
+    for i in range(m):  # the contacts with force, and those the twist keeps touching
+        slack = 0.0
+        for k in range(3):
+            slack += V[i, k] * v[k]
+        pos[i] = pos[i] or slack - xi[i] <= bound
+    return MOVE, value * L, keys[pos], v
 
 
 @njit(cache=CACHE)

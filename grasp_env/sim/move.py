@@ -12,6 +12,8 @@ state it reaches (:func:`at_rest`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -125,10 +127,19 @@ def run(
     else:
         q, s, jammed, events = advance(model, q, h0, dh, s_end, known, use_known, new_log(), solves)
     h = h0 + s * dh
-    if not (np.isfinite(q).all() and np.isfinite(h).all()):
+    if not (_finite(q) and _finite(h)):
         raise SimulationError("the move ended in a non-finite state")
     keys, rows = at_rest(model, q, h)
     return _out(q, h, s, s_end, blocked, jammed, False), events, keys, rows
+
+
+@njit(cache=CACHE, inline="always")
+def _finite(x: np.ndarray) -> bool:
+    """``np.isfinite(x).all()`` for a 1-D array, without its array."""
+    for i in range(x.shape[0]):
+        if not math.isfinite(x[i]):
+            return False
+    return True
 
 
 @njit(cache=CACHE)

@@ -70,6 +70,26 @@ def world_points_into(
                 out[i, 1] += oy[3]
 
 
+@njit(cache=CACHE, inline="always")
+def object_points_into(
+    points: np.ndarray, n_object: int, n_vertices: int, q: np.ndarray, out: np.ndarray
+) -> None:
+    """:func:`world_points_into` for the object's rows alone (its vertices and its normals),
+    with the same arithmetic: for Newton's iterations, which move the object and not the
+    hand."""
+    c, s = math.cos(q[2]), math.sin(q[2])
+    for i in range(n_object):
+        x, y = points[i, 0], points[i, 1]
+        out[i, 0] = c * x - s * y
+        out[i, 1] = s * x + c * y
+        out[i, 0] += q[0]
+        out[i, 1] += q[1]
+    for i in range(n_vertices, n_vertices + n_object):
+        x, y = points[i, 0], points[i, 1]
+        out[i, 0] = c * x - s * y
+        out[i, 1] = s * x + c * y
+
+
 @njit(cache=CACHE)
 def contact_rows(
     world: np.ndarray, n_object: int, n_vertices: int, keys: np.ndarray

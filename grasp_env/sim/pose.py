@@ -17,6 +17,7 @@ from grasp_env.compiled import CACHE
 from grasp_env.sim.placement import (
     TIP,
     contact_rows_into,
+    object_points_into,
     world_points_into,
 )
 from grasp_env.solvers import dense
@@ -60,14 +61,27 @@ def independent_forces(W: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
             return np.zeros(m), False
     U = W / norms
     if m == 3:
-        if abs(dense.det(U)) <= 1e-10:
+        volume, lam, ok = dense.det_and_solve(U, W, g)
+        if abs(volume) <= 1e-10:
             return np.zeros(m), False
-        return dense.solve(W, g)
-    G = dense.matmul(U.T.copy(), U)
-    if dense.det(G) > 1e-6:
-        lam, ok = dense.solve(G, dense.rmatvec(U, g))
-        if ok:
-            return lam / norms, True
+        return lam, ok
+    G = np.empty((m, m))  # U^T U, summed in U's row order
+    b = np.empty(m)  # U^T g
+    for i in range(m):
+        for j in range(m):
+            acc = 0.0
+            for k in range(3):
+                acc += U[k, i] * U[k, j]
+            G[i, j] = acc
+        acc = 0.0
+        for k in range(3):
+            acc += U[k, i] * g[k]
+        b[i] = acc
+    volume, lam, ok = dense.det_and_solve(G, G, b)
+    if volume > 1e-6 and ok:
+        for j in range(m):
+            lam[j] /= norms[j]
+        return lam, True
     if dense.rank(W, 1e-10) < m:
         return np.zeros(m), False
     return dense.lstsq(W, g, -1.0)[0], True
@@ -115,8 +129,10 @@ def newton(
     perm = np.empty(3, dtype=np.int64)
     rhs = np.empty(m)
     du = np.empty(3)
-    for _ in range(ITERATIONS):
-        world_points_into(points, body, n_vertices, half, q, h, world)
+    world_points_into(points, body, n_vertices, half, q, h, world)  # the hand's rows stay
+    for it in range(ITERATIONS):
+        if it > 0:
+            object_points_into(points, n_object, n_vertices, q, world)
         contact_rows_into(world, n_object, n_vertices, keys, rows)
         res = 0.0
         for i in range(m):
@@ -183,8 +199,10 @@ def newton_held(
     LU = np.empty((m + 3, m + 3))
     perm = np.empty(m + 3, dtype=np.int64)
     dz = np.empty(m + 3)
+    world_points_into(points, body, n_vertices, half, q, h, world)  # the hand's rows stay
     for it in range(ITERATIONS):
-        world_points_into(points, body, n_vertices, half, q, h, world)
+        if it > 0:
+            object_points_into(points, n_object, n_vertices, q, world)
         contact_rows_into(world, n_object, n_vertices, keys, contact)
         constraint_matrix_into(P, N, q, V)
         W[:] = V.T

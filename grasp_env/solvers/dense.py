@@ -167,6 +167,22 @@ def solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
 
 
 @njit(cache=CACHE)
+def det_and_solve(U: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray, bool]:
+    """``(det(U), x, ok)`` with ``(x, ok) = solve(A, b)``, for square ``U`` and ``A`` of one
+    size (a volume test on ``U``, then the solve), in one pair of LU buffers: the bits of
+    :func:`det` and :func:`solve`, with three allocations instead of five."""
+    n = A.shape[0]
+    LU = U.copy()
+    perm = np.empty(n, dtype=np.int64)
+    volume = lu_det(LU, lu_in_place(LU, perm))
+    LU[:] = A
+    lu_in_place(LU, perm)
+    x = np.empty(n)
+    ok = lu_solve(LU, perm, b, x)
+    return volume, x, ok
+
+
+@njit(cache=CACHE)
 def _jacobi(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One-sided Jacobi rotations of ``A``'s columns until they are orthogonal: ``(U, V,
     sv)`` with ``A V = U``, ``V`` orthogonal and ``sv`` the norms of ``U``'s columns (the

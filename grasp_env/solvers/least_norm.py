@@ -45,6 +45,26 @@ def _scale(b: np.ndarray, d: np.ndarray) -> float:
     return out
 
 
+@njit(cache=CACHE, inline="always")
+def _row_dot(A: np.ndarray, i: int, w: np.ndarray) -> float:
+    """``A[i] . w``, summed in column order (:func:`grasp_env.solvers.dense.matvec`'s)."""
+    acc = 0.0
+    for j in range(A.shape[1]):
+        acc += A[i, j] * w[j]
+    return acc
+
+
+@njit(cache=CACHE, inline="always")
+def _residual_squares(A: np.ndarray, w: np.ndarray, b: np.ndarray) -> float:
+    """``|A w - b|^2`` in :func:`grasp_env.solvers.dense.matvec`'s and ``dot``'s order,
+    without their arrays."""
+    out = 0.0
+    for i in range(A.shape[0]):
+        r = _row_dot(A, i, w) - b[i]
+        out += r * r
+    return out
+
+
 @njit(cache=CACHE)
 def _try(
     A: np.ndarray, b: np.ndarray, C: np.ndarray, d: np.ndarray, S: np.ndarray, thr: float
@@ -65,11 +85,11 @@ def _try(
             AS[m + i] = C[S[i]]
             bS[m + i] = d[S[i]]
         w = dense.lstsq(AS, bS, RCOND)[0]
-        r = dense.matvec(AS, w) - bS
-        if math.sqrt(dense.dot(r, r)) > thr:
+        if math.sqrt(_residual_squares(AS, w, bS)) > thr:
             return w, False
-    if C.shape[0] > 0 and (dense.matvec(C, w) - d).min() < -thr:
-        return w, False
+    for i in range(C.shape[0]):
+        if _row_dot(C, i, w) - d[i] < -thr:
+            return w, False
     if size > 0:
         mu = dense.lstsq(AS.T.copy(), w, RCOND)[0]  # w = AS^T mu
         if mu[m:].min() < -thr:

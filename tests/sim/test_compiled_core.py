@@ -131,6 +131,31 @@ def test_a_model_crosses_into_compiled_code_unchanged() -> None:
             np.testing.assert_array_equal(got, value, err_msg=name)
 
 
+def test_placing_the_object_alone_moves_only_its_rows() -> None:
+    """Newton's iterations place the object alone (``object_points_into``) on a placement
+    of every body: the result is every body placed afresh at the new pose, bit for bit, and
+    the object's rows are its polygon turned and moved (numpy, the reference)."""
+    from grasp_env import Simulator
+    from grasp_env.sim.placement import object_points_into, world_points
+
+    rng = np.random.default_rng(12)
+    for scene in ("fig13", "triangle", "hexagon"):
+        model = Simulator(scene).model
+        args = (model.points, model.body, model.n_vertices, model.half)
+        n, nv = model.n_object, model.n_vertices
+        for _ in range(50):
+            h = np.array([0.1, 0.8, 0.2, 0.5, -0.5]) + rng.normal(size=5) * 0.3
+            q0, q1 = rng.normal(size=3), rng.normal(size=3)
+            world = world_points(*args, q0, h)
+            object_points_into(model.points, n, nv, q1, world)
+            np.testing.assert_array_equal(world, world_points(*args, q1, h))
+            c, si = np.cos(q1[2]), np.sin(q1[2])
+            R = np.array([[c, -si], [si, c]])
+            vertices, normals = model.points[:n], model.points[nv : nv + n]
+            np.testing.assert_allclose(world[:n], vertices @ R.T + q1[:2], atol=1e-12)
+            np.testing.assert_allclose(world[nv : nv + n], normals @ R.T, atol=1e-12)
+
+
 def test_contact_velocities_match_the_reference() -> None:
     """The compiled ``xi`` (eq. 20) of hand-body contacts equals
     :func:`grasp_env.mechanics.closure.xi`, the reference, for random hand motions, points and

@@ -88,6 +88,30 @@ def test_solve_and_det_match_lapack() -> None:
             assert dense.det(A) == pytest.approx(np.linalg.det(A), rel=1e-12, abs=1e-14)
 
 
+def test_det_and_solve_is_det_then_solve_in_one_pair_of_buffers() -> None:
+    """The volume of one matrix and the solve with another, as LAPACK gives them, and the
+    bits of ``det`` and ``solve`` called apart (singular matrices included)."""
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 3, 4):
+        for k in range(60):
+            U, A = rng.normal(size=(n, n)), rng.normal(size=(n, n))
+            if k % 3 == 0:
+                A[-1] = 2.0 * A[0]  # singular: no solution reported
+            b = rng.normal(size=n)
+            volume, x, ok = dense.det_and_solve(U, A, b)
+            assert volume == pytest.approx(np.linalg.det(U), rel=1e-12, abs=1e-14)
+            x_ref, ok_ref = dense.solve(A, b)
+            assert volume == dense.det(U)
+            assert ok == ok_ref
+            if n == 2 and k % 3 == 0:
+                assert not ok  # an exactly zero pivot
+            if ok:
+                np.testing.assert_array_equal(x, x_ref)
+            if k % 3 != 0:
+                assert ok
+                np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-8, atol=1e-10)
+
+
 def test_solve_reports_a_singular_matrix() -> None:
     A = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]])
     assert not dense.solve(A, np.ones(3))[1]
